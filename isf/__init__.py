@@ -1,0 +1,71 @@
+"""isf: grasp planning for customized grippers by Iterative Surface Fitting.
+
+Fan, Lin, Tang, Tomizuka, "Grasp Planning for Customized Grippers by Iterative
+Surface Fitting", CASE 2018, generalised to any URDF gripper whose contact
+surfaces are tagged in the file.
+
+Frames: ``T_a_b`` is the pose of frame ``b`` in frame ``a`` (it maps points
+expressed in ``b`` into ``a``). The ``object`` frame is the frame of the object
+file; the ``gripper`` frame is the URDF's root link.
+"""
+
+__version__ = "0.1.0"
+
+from .collision import CollisionChecker, CollisionReport, Plane
+from .config import FitConfig
+from .exceptions import (
+    ConfigError,
+    GripperDescriptionError,
+    InvalidInputError,
+    ISFError,
+    ObjectLoadError,
+    PluginLoadError,
+    QPStepError,
+    SamplerNotFound,
+)
+from .fit import fit
+from .gripper import ContactSurface, Gripper
+from .gripper_loading import inspect_gripper, load_gripper
+from .object_loading import load_object
+from .object_specs import open_object
+from .object_surface import ObjectSurface
+from .planner import Grasp, PlanResult, PlanStats, plan
+from .result import FitResult, FitStatus, IterationRecord
+from .samplers import Outcome, Proposal, Sampler, available_samplers, get_sampler, register_sampler
+
+__all__ = [
+    "CollisionChecker",
+    "CollisionReport",
+    "ConfigError",
+    "ContactSurface",
+    "FitConfig",
+    "FitResult",
+    "FitStatus",
+    "Grasp",
+    "Gripper",
+    "GripperDescriptionError",
+    "ISFError",
+    "InvalidInputError",
+    "IterationRecord",
+    "ObjectLoadError",
+    "ObjectSurface",
+    "Outcome",
+    "PlanResult",
+    "PlanStats",
+    "Plane",
+    "PluginLoadError",
+    "Proposal",
+    "QPStepError",
+    "Sampler",
+    "SamplerNotFound",
+    "__version__",
+    "available_samplers",
+    "fit",
+    "get_sampler",
+    "inspect_gripper",
+    "load_gripper",
+    "load_object",
+    "open_object",
+    "plan",
+    "register_sampler",
+]

@@ -1,0 +1,169 @@
+"""The ``isf`` command line: ``plan``, ``grippers``, ``samplers``, ``inspect``.
+
+Exit codes: 0 success, 1 a gripper with problems (``inspect``) or a plan that
+found no collision-free grasp, 2 a usage or input error (one line on stderr,
+no traceback, no output file written).
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import math
+import sys
+from pathlib import Path
+
+from . import __version__
+from .exceptions import ISFError
+
+__all__ = ["main"]
+
+EXIT_OK, EXIT_NOTHING_FOUND, EXIT_USAGE = 0, 1, 2
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="isf", description="Grasp planning for customized grippers by Iterative Surface Fitting."
+    )
+    parser.add_argument("--version", action="version", version=f"isf {__version__}")
+    parser.add_argument("-v", "--verbose", action="store_true", help="log progress details")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    p = sub.add_parser("plan", help="plan grasps of an object", description=(
+        "Plan grasps of OBJECT with GRIPPER and write them as JSON. GRIPPER is a bundled name "
+        "(see 'isf grippers') or a tagged URDF; OBJECT is a mesh or point-cloud file, "
+        "shape:NAME (cylinder, box, sphere, capsule, torus) or asset:NAME (e.g. asset:bunny)."))
+    p.add_argument("--gripper", "-g", required=True, help="bundled gripper name or URDF path")
+    p.add_argument("--object", "-o", required=True, dest="object_spec", help="mesh/cloud file, shape:NAME or asset:NAME")
+    p.add_argument("--samples", "-n", type=int, default=60, help="samples to evaluate (default 60)")
+    p.add_argument("--sampler", "-s", default="regret", help="sampler name (default regret; see 'isf samplers')")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--units", choices=("m", "cm", "mm"), default="m", help="units of the object file (default m)")
+    p.add_argument("--scale", type=float, default=1.0, help="extra scale factor for the object")
+    p.add_argument("--table", type=float, default=None, metavar="Z",
+                   help="a table plane at height Z (object frame, metres): grasps below it are rejected")
+    p.add_argument("--top", type=int, default=None, metavar="K", help="keep only the best K grasps in the output")
+    p.add_argument("--out", default="grasps.json", help="output JSON file (default grasps.json)")
+    p.add_argument("--quiet", "-q", action="store_true", help="no progress bar and no table")
+    p.set_defaults(run=_cmd_plan)
+
+    p = sub.add_parser("grippers", help="list the bundled grippers")
+    p.set_defaults(run=_cmd_grippers)
+
+    p = sub.add_parser("samplers", help="list the installed samplers")
+    p.set_defaults(run=_cmd_samplers)
+
+    p = sub.add_parser("inspect", help="show a gripper's joints, limits, contact surfaces and problems")
+    p.add_argument("gripper", help="bundled gripper name or URDF path")
+    p.set_defaults(run=_cmd_inspect)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the command line; returns the exit code."""
+    args = _parser().parse_args(argv)
+    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
+                        format="%(levelname)s %(name)s: %(message)s")
+    try:
+        return args.run(args)
+    except ISFError as err:
+        print(f"isf: error: {_one_line(err)}", file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        print("isf: interrupted, nothing written", file=sys.stderr)
+        return 130
+
+
+def _one_line(err: Exception) -> str:
+    return " ".join(str(err).split())
+
+
+# ----------------------------------------------------------------------------- commands
+def _cmd_plan(args: argparse.Namespace) -> int:
+    from .collision import Plane
+    from .exceptions import InvalidInputError
+    from .gripper_loading import load_gripper
+    from .object_specs import open_object
+    from .plan_json import write_plan_json
+    from .planner import plan
+
+    out = Path(args.out)
+    if not out.parent.is_dir():
+        raise InvalidInputError(f"output folder {out.parent} does not exist: create it or pass another --out")
+    if args.top is not None and args.top < 1:
+        raise InvalidInputError(f"--top must be >= 1, got {args.top}")
+    gripper = load_gripper(args.gripper)
+    obj = open_object(args.object_spec, units=args.units, scale=args.scale)
+    obstacles = [Plane.table(args.table)] if args.table is not None else []
+    show = not args.quiet and sys.stderr.isatty()
+    progress = _ProgressBar(sys.stderr) if show else None
+    result = plan(gripper, obj, samples=args.samples, sampler=args.sampler, seed=args.seed,
+                  obstacles=obstacles, progress=progress)
+    if progress:
+        progress.close()
+    write_plan_json(result, out, top=args.top)
+    if not args.quiet:
+        print(_summary(result, args.top or 10))
+    s = result.stats
+    print(f"{s.collision_free}/{s.samples} collision-free grasps in {s.total_time:.2f} s; "
+          f"wrote {len(result.grasps) if args.top is None else min(args.top, len(result.grasps))} "
+          f"grasps to {out.resolve()}")
+    return EXIT_OK if s.collision_free else EXIT_NOTHING_FOUND
+
+
+def _cmd_grippers(args: argparse.Namespace) -> int:
+    from .bundled import bundled_grippers
+
+    for name, path in bundled_grippers().items():
+        print(f"{name:<16} {path}")
+    return EXIT_OK
+
+
+def _cmd_samplers(args: argparse.Namespace) -> int:
+    from .samplers import available_samplers
+
+    for name, info in available_samplers(load=True).items():
+        description = getattr(info, "description", "") or ""
+        print(f"{name:<10} {info.source:<28} {description}")
+    return EXIT_OK
+
+
+def _cmd_inspect(args: argparse.Namespace) -> int:
+    from .gripper_loading import format_report, inspect_gripper
+
+    report = inspect_gripper(args.gripper)
+    print(format_report(report))
+    return EXIT_OK if report.ok else EXIT_NOTHING_FOUND
+
+
+# ----------------------------------------------------------------------------- output
+class _ProgressBar:
+    """A one-line progress bar on a terminal stream."""
+
+    def __init__(self, stream, width: int = 30):
+        self.stream, self.width, self.free = stream, width, 0
+
+    def __call__(self, done: int, total: int, grasp) -> None:
+        self.free += grasp.collision_free
+        filled = round(self.width * done / total)
+        bar = "#" * filled + "." * (self.width - filled)
+        self.stream.write(f"\r[{bar}] {done}/{total} samples, {self.free} collision-free")
+        self.stream.flush()
+
+    def close(self) -> None:
+        self.stream.write("\n")
+        self.stream.flush()
+
+
+def _summary(result, top: int) -> str:
+    head = f"{'rank':>4}  {'free':<5} {'dist mm':>8} {'misalign deg':>12} {'clear mm':>9}  {'position (m)':<26} joints"
+    lines = [f"{result.gripper} on {result.object}, sampler {result.sampler}, seed {result.seed}", head]
+    for rank, g in enumerate(result.grasps[:top], start=1):
+        p = g.T_object_gripper[:3, 3]
+        joints = " ".join(f"{k}={v:.4g}" for k, v in g.joints.items())
+        lines.append(
+            f"{rank:>4}  {'yes' if g.collision_free else 'no':<5} {g.fit.mean_distance * 1e3:>8.3f} "
+            f"{math.degrees(g.fit.normal_misalignment):>12.2f} {g.collision.clearance * 1e3:>9.2f}  "
+            f"{p[0]:+.4f} {p[1]:+.4f} {p[2]:+.4f}     {joints}"
+        )
+    return "\n".join(lines)

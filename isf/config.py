@@ -1,0 +1,112 @@
+"""Parameters of one ISF fit (paper section V-A), in SI units.
+
+Reading the paper's parameters in SI
+------------------------------------
+The paper gives ``L = 4``, ``I0 = 200``, ``eps0 = 0.008``, ``delta_e = 1e-5`` and
+``alpha = 0.01`` without units. isf reads them as follows:
+
+* ``alpha = 0.01`` **metres**. :math:`E = E_p + \\alpha^2 E_n` adds squared
+  distances (m^2) to squared, dimensionless normal terms, so alpha is a length:
+  a normal misalignment with ``(R n^p)^T n^q + 1 = 1`` costs as much as a 1 cm
+  point-to-plane offset.
+* ``delta_e = 1e-5`` **mm^2**, i.e. ``1e-11`` m^2, **for the paper's ~512 pairs**
+  (two fingers of 256 points). Read in m^2 the threshold would be (0.14 mm)^2
+  per pair and IPFO would stop after one or two alternations, while the paper's
+  Fig. 5b shows IPFO running 7; read in mm^2 IPFO runs to convergence, as in
+  the figure. E is a sum over pairs, so a fixed threshold would mean something
+  different on every pyramid level; isf stops IPFO when E *per pair* decreases
+  by less than ``delta_e / 512``.
+* ``eps0 = 0.008`` is dimensionless (a relative change of the displacement,
+  see :mod:`isf.fit`), ``L`` and ``I0`` are counts.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, fields
+
+from .exceptions import ConfigError
+
+__all__ = ["FitConfig"]
+
+PAPER_PAIRS = 512
+"""Pairs the paper's ``delta_e`` refers to (two fingers x 256 points)."""
+
+
+@dataclass(frozen=True, kw_only=True)
+class FitConfig:
+    """Parameters of :func:`isf.fit` (Algorithms 1 and 2).
+
+    Attributes:
+        levels: pyramid levels ``L``; level ``l`` keeps ``1/2**l`` of each surface's points.
+        max_iterations: ``I0``; level ``l`` runs at most ``I0 / 2**l`` ISF iterations.
+        tolerance: ``eps0``; level ``l`` stops when the displacement ratio ``eta`` is
+            within ``1 +- 2**l * eps0``.
+        delta_e: ``Delta e``, m^2 for 512 pairs (the paper's 1e-5 mm^2); IPFO stops
+            when E per pair drops by less than ``delta_e / 512``.
+        normal_weight: ``alpha``, metres; 0 turns the normal-alignment term off.
+        max_ipfo_iterations: cap on IPFO palm/finger alternations per ISF iteration.
+        max_rotation_step: largest palm rotation of one palm step, radians.
+        max_revolute_step: largest change of a revolute joint in one finger step, radians.
+        finger_damping: Tikhonov weight added to the finger QP's Hessian (m^2 per unit^2).
+        outlier_factor: a pair is an outlier when its distance exceeds this many
+            times the median pair distance ...
+        outlier_floor: ... and also exceeds this distance, metres.
+        reject_duplicates: keep only the closest pair per object point (paper IV-B).
+        lock_fingers: hold the joints at their initial values (pure palm ICP).
+        contact_distance: a contact point is "in contact" within this distance of
+            the object, metres (used for the per-surface contact fractions).
+        min_pairs: fewer matched pairs than this ends the fit as ``lost_contact``.
+    """
+
+    levels: int = 4
+    max_iterations: int = 200
+    tolerance: float = 0.008
+    delta_e: float = 1e-11
+    normal_weight: float = 0.01
+    max_ipfo_iterations: int = 10
+    max_rotation_step: float = 0.3
+    max_revolute_step: float = 0.3
+    finger_damping: float = 1e-9
+    outlier_factor: float = 3.0
+    outlier_floor: float = 0.005
+    reject_duplicates: bool = True
+    lock_fingers: bool = False
+    contact_distance: float = 0.002
+    min_pairs: int = 6
+
+    def __post_init__(self) -> None:
+        positive_int = ("levels", "max_iterations", "max_ipfo_iterations", "min_pairs")
+        for name in positive_int:
+            value = getattr(self, name)
+            if not isinstance(value, int) or value < 1:
+                raise ConfigError(f"FitConfig.{name} must be an integer >= 1, got {value!r}")
+        non_negative = ("tolerance", "delta_e", "normal_weight", "finger_damping", "outlier_floor")
+        for name in non_negative:
+            value = getattr(self, name)
+            if not value >= 0.0:
+                raise ConfigError(f"FitConfig.{name} must be >= 0, got {value!r}")
+        positive = ("max_rotation_step", "max_revolute_step", "outlier_factor", "contact_distance")
+        for name in positive:
+            value = getattr(self, name)
+            if not value > 0.0:
+                raise ConfigError(f"FitConfig.{name} must be > 0, got {value!r}")
+
+    @property
+    def ipfo_tolerance(self) -> float:
+        """IPFO stop threshold on the decrease of E per pair, m^2."""
+        return self.delta_e / PAPER_PAIRS
+
+    def to_dict(self) -> dict:
+        """All parameters as a plain dict."""
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, values: dict) -> FitConfig:
+        """Build from a dict, rejecting unknown keys with the list of valid ones."""
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(values) - known)
+        if unknown:
+            raise ConfigError(
+                f"unknown FitConfig keys {unknown}; valid keys are {sorted(known)}"
+            )
+        return cls(**values)

@@ -1,0 +1,113 @@
+"""The IPFO finger step: a bounded least-squares QP over the joint vector, solved by OSQP.
+
+With the palm fixed, moving the joints by ``dq`` moves contact point ``i`` by
+``R J_i dq`` (``J_i`` its point Jacobian in the gripper frame) and turns its
+normal by ``(R Jw_i dq) x n_i``. The step minimises the linearised fitting error
+
+.. math::
+    \\min_{\\delta q} \\|A \\delta q - b\\|^2 + \\lambda \\|\\delta q\\|^2
+    \\quad s.t. \\quad q_{min} - q \\le \\delta q \\le q_{max} - q
+
+where the rows of ``A, b`` are point-to-plane rows
+:math:`(n^q_i)^T R J_i`, :math:`-(\\bar p_i - q_i)^T n^q_i` and, for joints that
+turn the normals, alpha-weighted normal-alignment rows. For a 1-DoF
+parallel gripper this is the paper's eq. (11) and its solution is (12)-(13).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import osqp
+import scipy.sparse as sp
+
+from .exceptions import QPStepError
+from .se3 import cross
+
+__all__ = ["FingerStepQP", "finger_rows"]
+
+
+def finger_rows(
+    R: np.ndarray,
+    points: np.ndarray,
+    normals: np.ndarray,
+    J_points: np.ndarray,
+    J_rotation: np.ndarray,
+    targets: np.ndarray,
+    target_normals: np.ndarray,
+    *,
+    normal_weight: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Rows ``A`` (K', n) and right-hand side ``b`` (K',) of the finger least squares.
+
+    Args:
+        R: palm rotation ``R_object_gripper``, (3, 3).
+        points: matched contact points in the object frame, (K, 3), metres.
+        normals: their normals in the gripper frame, (K, 3).
+        J_points: point Jacobians in the gripper frame, (K, 3, n).
+        J_rotation: angular Jacobians of their links in the gripper frame, (K, 3, n).
+        targets: matched object points, (K, 3), metres.
+        target_normals: object normals at the targets, (K, 3).
+        normal_weight: ``alpha``, metres.
+    """
+    m = target_normals @ R  # n^q expressed in the gripper frame, (K, 3)
+    A = np.einsum("kj,kjn->kn", m, J_points)
+    b = -np.einsum("kj,kj->k", points - targets, target_normals)
+    if normal_weight > 0.0 and np.any(J_rotation):
+        # d(n.m)/dq = (Jw dq) . (n x m)
+        An = normal_weight * np.einsum("kj,kjn->kn", cross(normals, m), J_rotation)
+        bn = -normal_weight * (np.einsum("kj,kj->k", normals, m) + 1.0)
+        A = np.concatenate([A, An])
+        b = np.concatenate([b, bn])
+    return A, b
+
+
+class FingerStepQP:
+    """One OSQP problem over ``n`` joints, set up once, then updated and warm-started.
+
+    Args:
+        n: number of joints.
+        damping: ``lambda``, the Tikhonov weight on ``dq``.
+    """
+
+    def __init__(self, n: int, damping: float):
+        self.n = n
+        self.damping = damping
+        rows, cols = np.triu_indices(n)
+        order = np.lexsort((rows, cols))  # column-major: CSC order of the upper triangle
+        self._rows, self._cols = rows[order], cols[order]
+        indptr = np.r_[0, np.cumsum(np.bincount(self._cols, minlength=n))]
+        # A dense upper-triangle pattern (explicit ones): later Px updates must
+        # have the same length, and csc_matrix(dense) would drop exact zeros.
+        P = sp.csc_matrix((np.ones(len(self._rows)), self._rows, indptr), shape=(n, n))
+        self._solver = osqp.OSQP()
+        self._solver.setup(
+            P, np.zeros(n), sp.identity(n, format="csc"), -np.ones(n), np.ones(n),
+            verbose=False, eps_abs=1e-10, eps_rel=1e-10, polishing=False, max_iter=4000,
+        )
+        self._x = np.zeros(n)
+
+    def solve(self, A: np.ndarray, b: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+        """Minimise ``||A dq - b||^2 + lambda ||dq||^2`` subject to ``lower <= dq <= upper``.
+
+        Args:
+            A: rows, shape (K, n).
+            b: right-hand side, shape (K,).
+            lower, upper: bounds on ``dq``, shape (n,), ``lower <= 0 <= upper``.
+
+        Returns:
+            ``dq``, shape (n,).
+
+        Raises:
+            QPStepError: OSQP did not reach ``solved``.
+        """
+        H = 2.0 * (A.T @ A)
+        H[np.diag_indices(self.n)] += 2.0 * self.damping
+        g = -2.0 * (A.T @ b)
+        s = self._solver
+        s.update(Px=H[self._rows, self._cols], q=g, l=lower, u=upper)
+        s.warm_start(x=np.clip(self._x, lower, upper))
+        res = s.solve(raise_error=False)
+        if res.info.status != "solved":
+            raise QPStepError({"P": H, "q": g, "lb": lower, "ub": upper}, res.info.status)
+        self._x = np.clip(res.x, lower, upper)
+        return self._x.copy()

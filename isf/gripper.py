@@ -1,0 +1,225 @@
+"""The :class:`Gripper`: finger kinematics and contact surfaces of one URDF.
+
+Frames
+------
+``gripper``
+    The URDF's root link. Every pose a user sees, ``T_object_gripper``, places
+    this frame in the object frame. Contact points, normals and Jacobians
+    returned here are expressed in it.
+``<link>``
+    Each URDF link's own frame; contact surfaces are stored in their link's frame.
+
+Joint vector ``q``
+    One value per *actuated* joint (mimic joints follow their leader and have
+    no entry), in the order of :attr:`Gripper.joint_names`; metres for
+    prismatic joints, radians for revolute ones.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+import pinocchio as pin
+
+__all__ = ["ContactKinematics", "ContactSurface", "Gripper", "LinkGeometry"]
+
+
+@dataclass(frozen=True, eq=False)
+class ContactSurface:
+    """A tagged contact surface, sampled as points with outward normals.
+
+    Attributes:
+        name: the ``name`` of its ``<isf:contact>`` tag.
+        link: the link that carries it.
+        points: surface points in the link frame, shape (N, 3), metres, in
+            farthest-point order (every prefix covers the patch evenly).
+        normals: unit outward normals in the link frame, shape (N, 3).
+        area: area of the selected faces, m^2.
+    """
+
+    name: str
+    link: str
+    points: np.ndarray
+    normals: np.ndarray
+    area: float
+
+
+@dataclass(frozen=True, eq=False)
+class LinkGeometry:
+    """One collision (or visual) geometry of a link as a triangle mesh.
+
+    Attributes:
+        link: the link that carries it.
+        name: the URDF element's name, or ``<link>_<k>`` for the k-th element.
+        vertices: vertex positions in the link frame, shape (V, 3), metres
+            (the element's ``<origin>`` and ``<mesh scale>`` applied).
+        faces: triangle vertex indices, shape (F, 3).
+    """
+
+    link: str
+    name: str
+    vertices: np.ndarray
+    faces: np.ndarray
+
+
+class ContactKinematics(NamedTuple):
+    """Contact points at one joint configuration, in the gripper frame.
+
+    Attributes:
+        points: contact points, shape (M, 3), metres.
+        normals: unit outward normals, shape (M, 3).
+        J_points: point Jacobians d(points)/dq, shape (M, 3, n_joints).
+        J_rotation: angular Jacobians of each point's link, shape (M, 3, n_joints):
+            d(normals)/dq . dq = (J_rotation . dq) x normals.
+    """
+
+    points: np.ndarray
+    normals: np.ndarray
+    J_points: np.ndarray
+    J_rotation: np.ndarray
+
+
+@dataclass(eq=False)
+class Gripper:
+    """Finger kinematics (Pinocchio, mimic joints honoured) plus contact surfaces.
+
+    Build one with :func:`isf.load_gripper`; the constructor takes already
+    parsed parts.
+
+    Attributes:
+        name: bundled name or URDF file stem.
+        model: the Pinocchio model, fixed base at the URDF root link, built with
+            ``mimic=True`` so ``model.nq`` counts actuated joints only.
+        surfaces: the tagged contact surfaces.
+        q_initial: the initial (open) configuration, shape (n_joints,).
+        geometries: collision geometry of every link, for collision checks.
+        urdf_path: the file it was loaded from, if any.
+        palm_link: link that approaches the object (``<isf:gripper palm_link>``).
+        approach: unit approach direction in the palm link frame, or None.
+    """
+
+    name: str
+    model: pin.Model
+    surfaces: tuple[ContactSurface, ...]
+    q_initial: np.ndarray
+    geometries: tuple[LinkGeometry, ...] = ()
+    urdf_path: Path | None = None
+    palm_link: str | None = None
+    approach: np.ndarray | None = None
+    _data: pin.Data = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        if self.model.nq != self.model.nv:
+            raise ValueError("isf supports revolute and prismatic joints only (nq must equal nv)")
+        self._data = self.model.createData()
+        self.q_initial = np.asarray(self.q_initial, dtype=float).copy()
+        names, idx, rotates = [], [], []
+        for jid in range(1, self.model.njoints):
+            joint = self.model.joints[jid]
+            if joint.nq > 0:
+                names.append(self.model.names[jid])
+                idx.append(joint.idx_q)
+                # JointModelRX/RY/RZ/RevoluteUnaligned turn their link; P* slide it.
+                rotates.append(joint.shortname().removeprefix("JointModel").startswith("R"))
+        order = np.argsort(idx)
+        self.joint_names: tuple[str, ...] = tuple(names[i] for i in order)
+        self.revolute = np.array([rotates[i] for i in order], dtype=bool)
+        """True for revolute joints (they turn normals), shape (n_joints,)."""
+        self.lower = np.array(self.model.lowerPositionLimit, dtype=float)
+        self.upper = np.array(self.model.upperPositionLimit, dtype=float)
+        # Stack every surface into one array; remember which link frame, which
+        # surface and which farthest-point rank each point has.
+        links = sorted({s.link for s in self.surfaces}, key=[s.link for s in self.surfaces].index)
+        self._link_frames = np.array([self.model.getFrameId(link) for link in links], dtype=int)
+        link_of = {link: k for k, link in enumerate(links)}
+        self.points_link = np.concatenate([s.points for s in self.surfaces]).astype(float)
+        self.normals_link = np.concatenate([s.normals for s in self.surfaces]).astype(float)
+        self.point_link = np.concatenate(
+            [np.full(len(s.points), link_of[s.link]) for s in self.surfaces]
+        )
+        self.point_surface = np.concatenate(
+            [np.full(len(s.points), k) for k, s in enumerate(self.surfaces)]
+        )
+        self.point_rank = np.concatenate([np.arange(len(s.points)) for s in self.surfaces])
+
+    # ------------------------------------------------------------------ sizes
+    @property
+    def n_joints(self) -> int:
+        """Number of actuated joints (the length of ``q``)."""
+        return self.model.nq
+
+    @property
+    def n_points(self) -> int:
+        """Total number of contact-surface points over all surfaces."""
+        return len(self.points_link)
+
+    def level_mask(self, level: int) -> np.ndarray:
+        """Points kept at pyramid level ``level`` (every surface keeps ``ceil(N / 2**level)``).
+
+        Returns:
+            boolean mask, shape (n_points,).
+        """
+        sizes = np.array([len(s.points) for s in self.surfaces])
+        keep = np.maximum(1, np.ceil(sizes / 2.0**level)).astype(int)
+        return self.point_rank < keep[self.point_surface]
+
+    def joints(self, q: np.ndarray) -> dict[str, float]:
+        """Joint values by name, metres or radians."""
+        return {n: float(v) for n, v in zip(self.joint_names, np.asarray(q, dtype=float))}
+
+    def clip(self, q: np.ndarray) -> np.ndarray:
+        """``q`` clipped into the joint limits, shape (n_joints,)."""
+        return np.clip(np.asarray(q, dtype=float), self.lower, self.upper)
+
+    # ------------------------------------------------------------- kinematics
+    def link_poses(self, q: np.ndarray) -> dict[str, np.ndarray]:
+        """Pose of every link in the gripper frame, ``T_gripper_link``, each (4, 4)."""
+        pin.framesForwardKinematics(self.model, self._data, np.asarray(q, dtype=float))
+        poses = {}
+        for fid, frame in enumerate(self.model.frames):
+            if frame.type == pin.FrameType.BODY:
+                poses[frame.name] = self._data.oMf[fid].homogeneous.copy()
+        return poses
+
+    def contact_kinematics(self, q: np.ndarray, mask: np.ndarray | None = None) -> ContactKinematics:
+        """Contact points, normals and their Jacobians at ``q``, gripper frame.
+
+        Args:
+            q: joint vector, shape (n_joints,).
+            mask: optional boolean mask or index array selecting points.
+
+        Returns:
+            :class:`ContactKinematics` for the selected points.
+        """
+        model, data = self.model, self._data
+        pin.computeJointJacobians(model, data, np.asarray(q, dtype=float))
+        pin.updateFramePlacements(model, data)
+        n_links = len(self._link_frames)
+        R = np.empty((n_links, 3, 3))
+        p = np.empty((n_links, 3))
+        J = np.empty((n_links, 6, model.nv))
+        for k, fid in enumerate(self._link_frames.tolist()):
+            R[k] = data.oMf[fid].rotation
+            p[k] = data.oMf[fid].translation
+            # eigenpy returns a (6,) vector when nv == 1
+            J[k] = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED).reshape(6, -1)
+        sel = slice(None) if mask is None else mask
+        li = self.point_link[sel]
+        Rl = R[li]
+        r = np.einsum("nij,nj->ni", Rl, self.points_link[sel])
+        normals = np.einsum("nij,nj->ni", Rl, self.normals_link[sel])
+        Jv = J[li, :3]
+        Jw = J[li, 3:]
+        # v_point = v_link + w x r  ->  J_point = Jv + Jw x r, column by column
+        rx, ry, rz = r[:, 0, None], r[:, 1, None], r[:, 2, None]
+        wx, wy, wz = Jw[:, 0], Jw[:, 1], Jw[:, 2]
+        J_points = Jv + np.stack([wy * rz - wz * ry, wz * rx - wx * rz, wx * ry - wy * rx], axis=1)
+        return ContactKinematics(r + p[li], normals, J_points, Jw)
+
+    def contact_points(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """All contact points and normals at ``q`` in the gripper frame, each (n_points, 3)."""
+        kin = self.contact_kinematics(q)
+        return kin.points, kin.normals

@@ -1,0 +1,68 @@
+"""The :class:`ObjectSurface`: an object's surface as points with outward normals.
+
+Frame: ``object``, the frame of the input mesh or cloud (after scaling to metres).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+__all__ = ["ObjectSurface"]
+
+
+@dataclass(eq=False)
+class ObjectSurface:
+    """Surface samples of a workpiece, with one KD-tree built once.
+
+    Attributes:
+        points: surface points in the object frame, shape (N, 3), metres.
+        normals: unit outward normals, shape (N, 3).
+        spacing: typical distance between neighbouring points, metres.
+        name: where it came from (file name or a description).
+        mesh_vertices: the source mesh's vertices (scaled, object frame), shape (V, 3),
+            or None for a point cloud.
+        mesh_faces: the source mesh's triangles, shape (F, 3), or None.
+    """
+
+    points: np.ndarray
+    normals: np.ndarray
+    spacing: float
+    name: str = "object"
+    mesh_vertices: np.ndarray | None = None
+    mesh_faces: np.ndarray | None = None
+    _tree: cKDTree = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        self.points = np.ascontiguousarray(self.points, dtype=np.float64)
+        self.normals = np.ascontiguousarray(self.normals, dtype=np.float64)
+        self._tree = cKDTree(self.points)
+
+    @property
+    def n_points(self) -> int:
+        """Number of surface points."""
+        return len(self.points)
+
+    @property
+    def centroid(self) -> np.ndarray:
+        """Mean of the surface points, shape (3,), metres (object frame)."""
+        return self.points.mean(axis=0)
+
+    @property
+    def is_mesh(self) -> bool:
+        """True when the surface came from a triangle mesh (not a point cloud)."""
+        return self.mesh_faces is not None
+
+    def nearest(self, query: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Nearest surface point of each query point.
+
+        Args:
+            query: points in the object frame, shape (M, 3), metres.
+
+        Returns:
+            (distances (M,) in metres, indices (M,) into :attr:`points`).
+        """
+        dist, idx = self._tree.query(query, k=1, workers=1)
+        return dist, idx

@@ -1,0 +1,99 @@
+"""Results of a fit: :class:`FitResult` and its per-iteration :class:`IterationRecord`."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import Enum
+
+import numpy as np
+
+__all__ = ["FitResult", "FitStatus", "IterationRecord"]
+
+
+class FitStatus(str, Enum):
+    """Why a fit stopped."""
+
+    CONVERGED = "converged"
+    """The stop rule of Algorithm 2 fired on the finest level."""
+    MAX_ITERATIONS = "max_iterations"
+    """The finest level reached its iteration cap ``I0``."""
+    LOST_CONTACT = "lost_contact"
+    """Fewer than ``min_pairs`` contact points matched the object."""
+
+
+@dataclass(frozen=True)
+class IterationRecord:
+    """One ISF iteration (one correspondence search plus one IPFO run).
+
+    Attributes:
+        level: pyramid level (``L-1`` coarsest ... 0 finest).
+        iteration: iteration number within the level, from 1.
+        mean_distance: mean point-to-plane distance of the matched pairs after IPFO, metres.
+        error: total fitting error E after IPFO, m^2.
+        n_pairs: matched pairs used.
+        q: joint vector after IPFO, (n_joints,): the finger displacement of Fig. 5.
+        ipfo_errors: E after each IPFO alternation, m^2 (Fig. 5b).
+    """
+
+    level: int
+    iteration: int
+    mean_distance: float
+    error: float
+    n_pairs: int
+    q: np.ndarray
+    ipfo_errors: tuple[float, ...]
+
+
+@dataclass(frozen=True, eq=False)
+class FitResult:
+    """The outcome of :func:`isf.fit`.
+
+    Attributes:
+        T_object_gripper: final pose of the gripper frame (URDF root link) in the object frame, (4, 4).
+        q: final joint vector, (n_joints,), metres or radians.
+        joints: the same, by joint name.
+        mean_distance: mean |point-to-plane distance| of the final matched pairs, metres (lower is better).
+        normal_misalignment: mean angle between each contact normal and the reversed
+            object normal, radians (0 = faces flush).
+        error: total fitting error E of the final pairs, m^2 (eq. 9a).
+        n_pairs: final matched pairs.
+        contact_points: matched contact points in the object frame, (K, 3), metres.
+        object_points: their matched object points, (K, 3), metres.
+        surface_contact: per contact surface, the fraction of its points within
+            ``contact_distance`` of the object.
+        iterations: ISF iterations over all levels.
+        status: why the fit stopped.
+        history: one record per ISF iteration.
+        time: wall time of the fit, seconds.
+    """
+
+    T_object_gripper: np.ndarray
+    q: np.ndarray
+    joints: dict[str, float]
+    mean_distance: float
+    normal_misalignment: float
+    error: float
+    n_pairs: int
+    contact_points: np.ndarray
+    object_points: np.ndarray
+    surface_contact: dict[str, float]
+    iterations: int
+    status: FitStatus
+    history: tuple[IterationRecord, ...]
+    time: float
+
+    @property
+    def converged(self) -> bool:
+        """True when the stop rule fired (status ``converged``)."""
+        return self.status is FitStatus.CONVERGED
+
+    @property
+    def all_surfaces_in_contact(self) -> bool:
+        """True when every contact surface has at least one point in contact."""
+        return all(v > 0.0 for v in self.surface_contact.values())
+
+    def __repr__(self) -> str:
+        return (
+            f"FitResult(status={self.status.value}, mean_distance={self.mean_distance * 1e3:.3f} mm, "
+            f"n_pairs={self.n_pairs}, iterations={self.iterations}, joints={self.joints})"
+        )

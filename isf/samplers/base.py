@@ -1,0 +1,241 @@
+"""The sampler contract: :class:`Sampler`, :class:`Proposal`, :class:`Outcome`, and pose helpers.
+
+A sampler proposes initial gripper poses for ISF (paper Alg. 3, "guided
+sampling") and may learn from how those proposals turned out. The planner
+drives every sampler the same way::
+
+    sampler.reset(obj, gripper, rng)              # once per plan
+    while budget_left:
+        proposals = sampler.propose(n, rng)       # n initial poses
+        outcomes = [fit(p) for p in proposals]    # the planner runs ISF
+        sampler.observe(outcomes)                 # optional feedback
+
+Parameters go to the constructor (keyword-only, validated there, raising
+:class:`~isf.exceptions.ConfigError`); the object, the gripper and the random
+generator arrive at call time. A sampler draws randomness only from the
+``rng`` it is handed, never from NumPy's or Python's global state, so a plan
+is reproducible from its seed.
+
+Frames: ``T_object_gripper`` is the pose of the gripper frame (the URDF root
+link) in the object frame, shape (4, 4), metres.
+"""
+
+from __future__ import annotations
+
+import abc
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, ClassVar
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from ..gripper import Gripper
+    from ..object_surface import ObjectSurface
+
+__all__ = [
+    "Outcome",
+    "Proposal",
+    "Sampler",
+    "grasp_centre",
+    "place_gripper",
+    "random_rotation",
+]
+
+
+def _frozen_array(value: Any, dtype: type = float) -> np.ndarray:
+    """A read-only float copy of ``value``."""
+    arr = np.array(value, dtype=dtype, copy=True)
+    arr.setflags(write=False)
+    return arr
+
+
+@dataclass(frozen=True, eq=False)
+class Proposal:
+    """One initial grasp proposed by a sampler.
+
+    The arrays are stored as read-only copies; copy them before editing.
+
+    Attributes:
+        T_object_gripper: initial pose of the gripper frame in the object
+            frame, shape (4, 4), metres.
+        q: initial joint vector, shape (n_joints,), metres or radians; None
+            means ``gripper.q_initial``.
+        record: JSON-serialisable notes the sampler wants back in
+            :meth:`Sampler.observe` and in the planner's results, e.g.
+            ``{"cluster": 3}``.
+    """
+
+    T_object_gripper: np.ndarray
+    q: np.ndarray | None = None
+    record: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        T = _frozen_array(self.T_object_gripper)
+        if T.shape != (4, 4):
+            raise ValueError(f"T_object_gripper must have shape (4, 4), got {T.shape}")
+        object.__setattr__(self, "T_object_gripper", T)
+        if self.q is not None:
+            q = _frozen_array(self.q)
+            if q.ndim != 1:
+                raise ValueError(f"q must be a 1-D joint vector, got shape {q.shape}")
+            object.__setattr__(self, "q", q)
+        object.__setattr__(self, "record", dict(self.record))
+
+
+@dataclass(frozen=True, eq=False)
+class Outcome:
+    """What became of one :class:`Proposal` after ISF and the collision check.
+
+    Attributes:
+        proposal: the proposal that was fitted.
+        error: fitting error of the ISF result (mean point-to-plane
+            distance), metres, lower is better; ``inf`` for a failed fit.
+        collision_free: True when the fitted gripper does not penetrate the object.
+    """
+
+    proposal: Proposal
+    error: float
+    collision_free: bool
+
+    def __post_init__(self) -> None:
+        error = float(self.error)
+        if math.isnan(error):
+            raise ValueError("Outcome.error is NaN; report a failed fit as float('inf')")
+        object.__setattr__(self, "error", error)
+        object.__setattr__(self, "collision_free", bool(self.collision_free))
+
+
+class Sampler(abc.ABC):
+    """Base class of every initial-pose sampler (built-in or plugin).
+
+    Subclasses set the class attributes :attr:`name` (the entry-point name,
+    ``[a-z0-9_]+``) and :attr:`description` (one line), take their parameters
+    as keyword-only constructor arguments, and implement :meth:`propose`.
+    Override :meth:`reset` to precompute per-object state (call
+    ``super().reset(...)`` to keep :attr:`obj` and :attr:`gripper`), and
+    :meth:`observe` to learn from outcomes. Check a new sampler with
+    :func:`isf.testing.check_sampler`.
+
+    Attributes:
+        obj: the object of the current plan (set by :meth:`reset`).
+        gripper: the gripper of the current plan (set by :meth:`reset`).
+    """
+
+    name: ClassVar[str] = ""
+    description: ClassVar[str] = ""
+
+    obj: ObjectSurface | None = None
+    gripper: Gripper | None = None
+
+    def reset(self, obj: ObjectSurface, gripper: Gripper, rng: np.random.Generator) -> None:
+        """Start a new plan: forget earlier outcomes and precompute what the object needs.
+
+        Args:
+            obj: object surface, object frame, metres.
+            gripper: the gripper to place.
+            rng: the plan's random generator; the only source of randomness.
+        """
+        self.obj = obj
+        self.gripper = gripper
+
+    @abc.abstractmethod
+    def propose(self, n: int, rng: np.random.Generator) -> list[Proposal]:
+        """Propose ``n`` initial grasps.
+
+        Args:
+            n: number of proposals, >= 1.
+            rng: the plan's random generator; the only source of randomness.
+
+        Returns:
+            exactly ``n`` proposals.
+
+        Raises:
+            RuntimeError: when called before :meth:`reset`.
+        """
+
+    def observe(self, outcomes: Sequence[Outcome]) -> None:  # noqa: B027 (optional hook)
+        """Learn from fitted proposals; the default ignores them.
+
+        Args:
+            outcomes: results for proposals this sampler made since :meth:`reset`.
+        """
+
+    def _require_reset(self) -> tuple[ObjectSurface, Gripper]:
+        """The current object and gripper, or a RuntimeError when :meth:`reset` was not called."""
+        if self.obj is None or self.gripper is None:
+            raise RuntimeError(
+                f"{type(self).__name__}: call reset(obj, gripper, rng) before propose()/observe()"
+            )
+        return self.obj, self.gripper
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}()"
+
+
+def random_rotation(rng: np.random.Generator, size: int | None = None) -> np.ndarray:
+    """Rotation matrices drawn uniformly (Haar measure) from SO(3).
+
+    A unit quaternion with i.i.d. normal components is uniform on the 3-sphere,
+    hence its rotation is uniform on SO(3).
+
+    Args:
+        rng: random generator.
+        size: number of rotations, or None for a single one.
+
+    Returns:
+        proper rotation(s), shape (3, 3), or (size, 3, 3) when ``size`` is given.
+    """
+    quat = rng.standard_normal((1 if size is None else size, 4))
+    quat /= np.linalg.norm(quat, axis=1, keepdims=True)
+    w, x, y, z = quat.T
+    R = np.stack(
+        [
+            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+            np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+            np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+        ],
+        axis=1,
+    )
+    return R[0] if size is None else R
+
+
+def grasp_centre(gripper: Gripper) -> np.ndarray:
+    """Mean of the gripper's contact points at ``q_initial``, gripper frame.
+
+    Returns:
+        the grasp centre, shape (3,), metres.
+    """
+    points, _ = gripper.contact_points(gripper.q_initial)
+    return points.mean(axis=0)
+
+
+def place_gripper(
+    gripper: Gripper, centre_object: np.ndarray, R_object_gripper: np.ndarray
+) -> np.ndarray:
+    """Gripper pose that puts its grasp centre at a point of the object frame.
+
+    Solves ``R @ c + p = centre_object`` for the translation ``p``, with ``c``
+    the :func:`grasp_centre`.
+
+    Args:
+        gripper: the gripper.
+        centre_object: where the grasp centre goes, object frame, shape (3,)
+            or (n, 3), metres.
+        R_object_gripper: gripper orientation in the object frame, shape
+            (3, 3) or (n, 3, 3).
+
+    Returns:
+        ``T_object_gripper``, shape (4, 4), or (n, 4, 4) for batched input.
+    """
+    R = np.asarray(R_object_gripper, dtype=float)
+    centre = np.asarray(centre_object, dtype=float)
+    batched = R.ndim == 3 or centre.ndim == 2
+    R = np.broadcast_to(R, np.broadcast_shapes(R.shape[:-2], centre.shape[:-1]) + (3, 3))
+    centre = np.broadcast_to(centre, R.shape[:-1])
+    T = np.zeros(R.shape[:-2] + (4, 4))
+    T[..., :3, :3] = R
+    T[..., :3, 3] = centre - R @ grasp_centre(gripper)
+    T[..., 3, 3] = 1.0
+    return T if batched else T.reshape(4, 4)

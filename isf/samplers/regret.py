@@ -1,0 +1,156 @@
+"""The ``regret`` sampler: k-means cluster centres ranked by average regret (paper Alg. 3).
+
+The object's points are split into K clusters by k-means; each cluster centre
+is a candidate grasp centre, like an arm of a multi-armed bandit. Each round
+samples the cluster with the lowest average regret (ties to the lowest index),
+with a random orientation, and the fitted result updates that cluster:
+
+.. math::
+
+    regret(k^*) \\leftarrow \\frac{regret(k^*) \\, trial(k^*) + error}{trial(k^*) + 1},
+    \\qquad regret(k^*) \\leftarrow (1 + \\gamma \\, col) \\, regret(k^*),
+    \\qquad trial(k^*) \\leftarrow trial(k^*) + 1
+
+with ``col = 1`` when the fitted gripper collides with the object. Starting
+from ``regret = 0``, every cluster is tried once before any is tried twice
+(as long as errors are positive).
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+from scipy.cluster.vq import ClusterError, kmeans2, vq
+
+from ..exceptions import ConfigError
+from .base import Outcome, Proposal, Sampler, place_gripper, random_rotation
+
+if TYPE_CHECKING:
+    from ..gripper import Gripper
+    from ..object_surface import ObjectSurface
+
+__all__ = ["RegretSampler"]
+
+logger = logging.getLogger(__name__)
+
+_KMEANS_ATTEMPTS = 5
+
+
+@dataclass(eq=False, kw_only=True)
+class RegretSampler(Sampler):
+    """Guided sampling over k-means cluster centres (paper Alg. 3).
+
+    The paper's loop proposes one grasp at a time (``propose(1)`` then
+    ``observe``); ``propose(n)`` with ``n > 1`` gives ``n`` proposals at the
+    current best cluster, each with its own random orientation. ``record``
+    holds ``{"cluster": k, "regret": regret(k) when proposed}``.
+
+    Args:
+        n_clusters: number of k-means centres K (paper: 6), >= 1 and at most
+            the number of object points.
+        gamma: collision penalty factor (paper: 0.2), >= 0.
+        kmeans_iterations: Lloyd iterations of k-means, >= 1.
+
+    Attributes:
+        centres: cluster centres, object frame, shape (K, 3), metres.
+        labels: cluster of each object point, shape (N,).
+        regret: average regret per cluster, shape (K,), metres.
+        trials: number of outcomes per cluster, shape (K,).
+    """
+
+    name = "regret"
+    description = "k-means cluster centres chosen by least average fitting error (paper Alg. 3)"
+
+    n_clusters: int = 6
+    gamma: float = 0.2
+    kmeans_iterations: int = 10
+
+    centres: np.ndarray = field(init=False, repr=False, default=None)
+    labels: np.ndarray = field(init=False, repr=False, default=None)
+    regret: np.ndarray = field(init=False, repr=False, default=None)
+    trials: np.ndarray = field(init=False, repr=False, default=None)
+
+    def __post_init__(self) -> None:
+        for key in ("n_clusters", "kmeans_iterations"):
+            value = getattr(self, key)
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+                raise ConfigError(f"regret: {key} must be an integer >= 1, got {value!r}")
+        gamma = self.gamma
+        if isinstance(gamma, bool) or not isinstance(gamma, (int, float, np.number)):
+            raise ConfigError(f"regret: gamma must be a number >= 0, got {gamma!r}")
+        if not np.isfinite(gamma) or gamma < 0:
+            raise ConfigError(f"regret: gamma must be a finite number >= 0, got {gamma!r}")
+
+    def reset(self, obj: ObjectSurface, gripper: Gripper, rng: np.random.Generator) -> None:
+        """Cluster the object's points and zero the regret table (see :meth:`Sampler.reset`).
+
+        Raises:
+            ConfigError: the object has fewer points than ``n_clusters``.
+        """
+        super().reset(obj, gripper, rng)
+        if obj.n_points < self.n_clusters:
+            raise ConfigError(
+                f"regret: n_clusters={self.n_clusters} exceeds the object's {obj.n_points} "
+                "points; lower n_clusters or sample the object more densely"
+            )
+        self.centres = self._kmeans(obj.points, rng)
+        # kmeans2's labels predate its last centroid update; label by the final centres.
+        self.labels = vq(obj.points, self.centres, check_finite=False)[0]
+        self.regret = np.zeros(self.n_clusters)
+        self.trials = np.zeros(self.n_clusters, dtype=int)
+
+    def _kmeans(self, points: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """k-means++ centres, shape (K, 3); retries when a cluster empties."""
+        for attempt in range(_KMEANS_ATTEMPTS):
+            try:
+                centres, _ = kmeans2(
+                    points,
+                    self.n_clusters,
+                    iter=self.kmeans_iterations,
+                    minit="++",
+                    missing="raise",
+                    seed=rng,
+                )
+                return np.asarray(centres, dtype=float)
+            except ClusterError:
+                logger.debug("k-means attempt %d left a cluster empty; retrying", attempt + 1)
+        raise ConfigError(
+            f"regret: k-means could not find {self.n_clusters} non-empty clusters in "
+            f"{_KMEANS_ATTEMPTS} attempts (duplicate points?); lower n_clusters"
+        )
+
+    def best_cluster(self) -> int:
+        """Index of the cluster with the least average regret (lowest index on ties)."""
+        self._require_reset()
+        return int(np.argmin(self.regret))
+
+    def propose(self, n: int, rng: np.random.Generator) -> list[Proposal]:
+        """``n`` proposals at the best cluster centre with random orientations."""
+        _, gripper = self._require_reset()
+        k = self.best_cluster()
+        T = place_gripper(gripper, self.centres[k], random_rotation(rng, size=n))
+        record = {"cluster": k, "regret": float(self.regret[k])}
+        return [Proposal(T[i], record=record) for i in range(n)]
+
+    def observe(self, outcomes: Sequence[Outcome]) -> None:
+        """Fold each outcome into its cluster's average regret, in order.
+
+        Raises:
+            ValueError: an outcome's proposal has no valid ``"cluster"`` record.
+        """
+        self._require_reset()
+        for outcome in outcomes:
+            k = outcome.proposal.record.get("cluster")
+            if not isinstance(k, (int, np.integer)) or not 0 <= k < self.n_clusters:
+                raise ValueError(
+                    f"regret: outcome record {dict(outcome.proposal.record)!r} has no valid "
+                    "'cluster'; pass back proposals made by this sampler since reset()"
+                )
+            collided = not outcome.collision_free
+            average = (self.regret[k] * self.trials[k] + outcome.error) / (self.trials[k] + 1)
+            self.regret[k] = (1.0 + self.gamma * collided) * average
+            self.trials[k] += 1

@@ -1,0 +1,150 @@
+"""ISF end to end on the bundled grippers: the paper's cylinder, molds, joint limits."""
+
+import numpy as np
+import pytest
+
+import isf
+from _builders import random_rotation
+from isf.se3 import make_transform, rotation_angle
+
+GROOVE_RADIUS = 0.008  # docs/bundled-grippers.md: paper-parallel groove radius
+GROOVE_HEIGHT = 0.06  # groove axis height above the palm, metres
+
+
+@pytest.fixture(scope="module")
+def paper_gripper():
+    return isf.load_gripper("paper-parallel")
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_grooves_close_on_a_cylinder(paper_gripper, seed):
+    """Start 5 mm and 10 degrees off; the grooves seat on a cylinder of their own radius."""
+    rng = np.random.default_rng(seed)
+    obj = isf.open_object("shape:cylinder")  # radius 8 mm along x through the origin
+    T_true = make_transform(np.eye(3), [0.0, 0.0, -GROOVE_HEIGHT])
+    offset = rng.normal(size=3)
+    T0 = make_transform(random_rotation(rng, np.radians(10)), 0.005 * offset / np.linalg.norm(offset)) @ T_true
+    result = isf.fit(paper_gripper, obj, T0)
+    assert result.status is isf.FitStatus.CONVERGED
+    assert result.mean_distance < 0.2e-3
+    # the jaw width d = 2 q between groove bottoms equals the cylinder's diameter
+    assert 2 * result.q[0] == pytest.approx(2 * GROOVE_RADIUS, abs=0.2e-3)
+    # the grooves' common axis lies on the cylinder axis (the x axis of the object)
+    axis_point = result.T_object_gripper @ [0.0, 0.0, GROOVE_HEIGHT, 1.0]
+    assert np.hypot(axis_point[1], axis_point[2]) < 0.3e-3
+    assert abs(result.T_object_gripper[:3, 0] @ [1.0, 0.0, 0.0]) > np.cos(np.radians(1))
+
+
+def mold(gripper, T_star, q_star, points_per_surface=3000):
+    """The gripper's own contact surfaces at (T*, q*), sampled densely, as an object with flipped normals."""
+    dense = isf.load_gripper(gripper.urdf_path, points_per_surface=points_per_surface)
+    points, normals = dense.contact_points(q_star)
+    obj = isf.ObjectSurface(points @ T_star[:3, :3].T + T_star[:3, 3], -normals @ T_star[:3, :3].T,
+                            spacing=1e-3, name="mold")
+    obj.surface_of_point = dense.point_surface  # which contact surface each mold point copies
+    return obj
+
+
+def perturbed(rng, T, angle, distance, centre=np.zeros(3)):
+    """``T`` turned by ``angle`` about a random axis through ``centre`` (object frame), then moved by ``distance``."""
+    offset = rng.normal(size=3)
+    R = random_rotation(rng, angle)
+    move = make_transform(R, centre - R @ centre + distance * offset / np.linalg.norm(offset))
+    return move @ T
+
+
+def test_mold_paper_parallel(paper_gripper):
+    """Curved grooves determine the jaw and the pose, up to sliding along the groove axis (x)."""
+    rng = np.random.default_rng(0)
+    T_star = perturbed(rng, np.eye(4), 1.0, 0.05)
+    q_star = np.array([0.011])
+    obj = mold(paper_gripper, T_star, q_star)
+    centre = obj.points.mean(axis=0)
+    for _ in range(3):
+        start = perturbed(rng, T_star, np.radians(6), 0.002, centre)
+        result = isf.fit(paper_gripper, obj, start, q=[0.01])
+        # zero error up to the mold's own chord error (3000 points on an 8 mm groove: ~1 um)
+        assert result.mean_distance < 3e-6
+        assert result.q[0] == pytest.approx(q_star[0], abs=1e-5)
+        assert rotation_angle(result.T_object_gripper[:3, :3].T @ T_star[:3, :3]) < 1e-3
+        slide = np.linalg.inv(T_star) @ result.T_object_gripper
+        np.testing.assert_allclose(slide[1:3, 3], 0.0, atol=5e-5)  # only x (the groove axis) is free
+
+
+def test_mold_flat_parallel():
+    """Flat pads determine the jaw, the pads' plane and tilt; they may slide and turn in-plane."""
+    gripper = isf.load_gripper("flat-parallel")
+    rng = np.random.default_rng(1)
+    T_star = perturbed(rng, np.eye(4), 1.0, 0.05)
+    q_star = np.array([0.025])
+    obj = mold(gripper, T_star, q_star)
+    centre = obj.points.mean(axis=0)
+    for _ in range(3):
+        result = isf.fit(gripper, obj, perturbed(rng, T_star, np.radians(5), 0.002, centre), q=[0.03])
+        assert result.mean_distance < 1e-7
+        assert result.q[0] == pytest.approx(q_star[0], abs=1e-6)
+        relative = np.linalg.inv(T_star) @ result.T_object_gripper
+        np.testing.assert_allclose(relative[:3, 1], [0.0, 1.0, 0.0], atol=1e-4)  # pad normal axis kept
+        assert abs(relative[1, 3]) < 1e-5  # no motion across the pads
+
+
+def _sphere_centre(points):
+    """Least-squares sphere centre: |p|^2 = 2 p.c + k."""
+    A = np.c_[2 * points, np.ones(len(points))]
+    return np.linalg.lstsq(A, (points**2).sum(axis=1), rcond=None)[0][:3]
+
+
+def test_mold_three_finger():
+    """Spherical-cap pads: the fit returns every pad onto its sphere (the caps may slide on it)."""
+    gripper = isf.load_gripper("three-finger")
+    rng = np.random.default_rng(2)
+    T_star = perturbed(rng, np.eye(4), 1.0, 0.05)
+    q_star = np.array([0.1, 0.5, 0.2, 0.4, 0.0, 0.6])
+    obj = mold(gripper, T_star, q_star)
+    start = np.clip(q_star + rng.uniform(-0.05, 0.05, 6), gripper.lower, gripper.upper)
+    result = isf.fit(gripper, obj, perturbed(rng, T_star, np.radians(3), 0.002, obj.points.mean(axis=0)), q=start)
+    assert result.mean_distance < 2e-5
+    T = result.T_object_gripper
+    fitted = gripper.contact_points(result.q)[0] @ T[:3, :3].T + T[:3, 3]
+    for k in range(len(gripper.surfaces)):
+        np.testing.assert_allclose(_sphere_centre(fitted[gripper.point_surface == k]),
+                                   _sphere_centre(obj.points[obj.surface_of_point == k]), atol=5e-4)
+
+
+@pytest.mark.parametrize("name", ["paper-parallel", "flat-parallel", "three-finger"])
+def test_joint_limits_hold_from_far_starts(name):
+    """From starts far off and at the limits, the fit never leaves the joint limits."""
+    gripper = isf.load_gripper(name)
+    obj = isf.open_object("shape:box")
+    rng = np.random.default_rng(3)
+    for start in (gripper.lower, gripper.upper, gripper.q_initial):
+        T0 = make_transform(random_rotation(rng, np.pi), rng.uniform(-0.02, 0.02, 3))
+        result = isf.fit(gripper, obj, T0, q=start)
+        qs = np.array([r.q for r in result.history] + [result.q])
+        assert np.all(qs >= gripper.lower - 1e-12) and np.all(qs <= gripper.upper + 1e-12)
+
+
+def test_history_records_fig5(paper_gripper):
+    """The per-iteration history decreases the error overall and holds the finger displacement."""
+    obj = isf.open_object("shape:cylinder")
+    T0 = make_transform(random_rotation(np.random.default_rng(7), np.radians(10)), [0.0, 0.004, -0.056])
+    result = isf.fit(paper_gripper, obj, T0)
+    dist = [r.mean_distance for r in result.history]
+    assert dist[-1] < 0.2 * dist[0]
+    assert all(r.q.shape == (1,) for r in result.history)
+    assert all(len(r.ipfo_errors) >= 1 for r in result.history)
+    assert result.iterations == len(result.history)
+
+
+def test_bad_inputs_to_fit(paper_gripper):
+    obj = isf.open_object("shape:cylinder")
+    with pytest.raises(isf.InvalidInputError, match="4x4"):
+        isf.fit(paper_gripper, obj, np.eye(3))
+    with pytest.raises(isf.InvalidInputError, match="rigid transform"):
+        isf.fit(paper_gripper, obj, 2 * np.eye(4))
+    with pytest.raises(isf.InvalidInputError, match="outside their limits"):
+        isf.fit(paper_gripper, obj, np.eye(4), q=[0.5])
+    with pytest.raises(isf.InvalidInputError, match="1 finite values"):
+        isf.fit(paper_gripper, obj, np.eye(4), q=[0.01, 0.01])
+    with pytest.raises(isf.ConfigError, match="levels"):
+        isf.FitConfig(levels=0)

@@ -1,0 +1,373 @@
+"""Sampler contract, pose helpers, built-in samplers and the conformance kit itself."""
+
+from __future__ import annotations
+
+import random
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+
+from isf.exceptions import ConfigError
+from isf.object_surface import ObjectSurface
+from isf.samplers import (
+    Outcome,
+    Proposal,
+    RegretSampler,
+    Sampler,
+    UniformSampler,
+    available_samplers,
+    get_sampler,
+    grasp_centre,
+    place_gripper,
+    random_rotation,
+)
+from isf.testing import canonical_gripper, canonical_object, check_sampler
+
+# The canonical gripper's palm sits at (0.01, 0, 0.02) with rpy (0.3, 0, pi/2) and its
+# pads are centred 0.05 m along the palm z axis, so the grasp centre in the gripper frame is:
+GRASP_CENTRE = np.array([0.01 + 0.05 * np.sin(0.3), 0.0, 0.02 + 0.05 * np.cos(0.3)])
+
+
+@pytest.fixture(scope="module")
+def gripper():
+    return canonical_gripper()
+
+
+@pytest.fixture(scope="module")
+def box():
+    return canonical_object("box")
+
+
+# ------------------------------------------------------------------ conformance
+
+
+@pytest.mark.parametrize("name", sorted(available_samplers()))
+def test_every_installed_sampler_conforms(name):
+    check_sampler(get_sampler(name))
+
+
+@pytest.mark.parametrize(
+    "sampler", [RegretSampler, UniformSampler, RegretSampler(n_clusters=3, gamma=0.5)], ids=repr
+)
+@pytest.mark.parametrize("kind", ["box", "sphere"])
+def test_builtin_samplers_conform(sampler, kind):
+    check_sampler(sampler, obj=canonical_object(kind))
+
+
+class _Broken(UniformSampler):
+    """Base of deliberately broken samplers: subclasses override _edit."""
+
+    name = "broken"
+    description = "a deliberately broken sampler"
+
+    def propose(self, n, rng):
+        return self._edit(super().propose(n, rng), rng)
+
+    def _edit(self, proposals, rng):
+        return proposals
+
+
+def _with_T(p, T):
+    return Proposal(T, p.q, p.record)
+
+
+def _set(T, index, value):
+    T = T.copy()
+    T[index] = value
+    return T
+
+
+class _Reflection(_Broken):
+    def _edit(self, proposals, rng):
+        return [_with_T(p, p.T_object_gripper @ np.diag([1.0, 1.0, -1.0, 1.0])) for p in proposals]
+
+
+class _Scaled(_Broken):
+    def _edit(self, proposals, rng):
+        return [_with_T(p, p.T_object_gripper @ np.diag([1.1, 1.1, 1.1, 1.0])) for p in proposals]
+
+
+class _BadLastRow(_Broken):
+    def _edit(self, proposals, rng):
+        return [_with_T(p, _set(p.T_object_gripper, (3, 0), 0.5)) for p in proposals]
+
+
+class _NotFinite(_Broken):
+    def _edit(self, proposals, rng):
+        return [_with_T(p, _set(p.T_object_gripper, (0, 3), np.nan)) for p in proposals]
+
+
+class _NumpyGlobal(_Broken):
+    def _edit(self, proposals, rng):
+        np.random.uniform()
+        return proposals
+
+
+class _PythonGlobal(_Broken):
+    def _edit(self, proposals, rng):
+        random.random()
+        return proposals
+
+
+class _OwnGenerator(_Broken):
+    def _edit(self, proposals, rng):
+        return UniformSampler.propose(self, len(proposals), np.random.default_rng())
+
+
+class _OneShort(_Broken):
+    def _edit(self, proposals, rng):
+        return proposals[:-1]
+
+
+class _Tuple(_Broken):
+    def _edit(self, proposals, rng):
+        return tuple(proposals)
+
+
+class _BadRecord(_Broken):
+    def _edit(self, proposals, rng):
+        return [Proposal(p.T_object_gripper, record={"point": {1, 2}}) for p in proposals]
+
+
+class _JointsOutOfLimits(_Broken):
+    def _edit(self, proposals, rng):
+        return [Proposal(p.T_object_gripper, q=[0.5], record=p.record) for p in proposals]
+
+
+@dataclass(eq=False, kw_only=True)
+class _Remembers(_Broken):
+    """Keeps a counter across plans (reset does not clear it)."""
+
+    count: int = 0
+
+    def _edit(self, proposals, rng):
+        self.count += 1
+        return [_with_T(p, _set(p.T_object_gripper, (0, 3), 1e-3 * self.count))
+                for p in proposals]
+
+
+class _BadName(UniformSampler):
+    name = "Bad Name"
+
+
+@pytest.mark.parametrize(
+    ("cls", "message"),
+    [
+        (_Reflection, "det"),
+        (_Scaled, "orthonormal"),
+        (_BadLastRow, "last row"),
+        (_NotFinite, "not finite"),
+        (_NumpyGlobal, "global RNG"),
+        (_PythonGlobal, "global RNG"),
+        (_OwnGenerator, "same seed"),
+        (_OneShort, "exactly n"),
+        (_Tuple, "return a list"),
+        (_BadRecord, "JSON"),
+        (_JointsOutOfLimits, "joint limits"),
+        (_Remembers, "reset"),
+        (_BadName, "name"),
+    ],
+    ids=lambda v: v.__name__ if isinstance(v, type) else v,
+)
+def test_check_sampler_catches_broken_samplers(cls, message):
+    with pytest.raises(AssertionError, match=message):
+        check_sampler(cls)
+
+
+def test_check_sampler_rejects_non_samplers():
+    with pytest.raises(AssertionError, match="not a subclass"):
+        check_sampler(dict)
+
+
+# ---------------------------------------------------------------- data classes
+
+
+def test_proposal_stores_read_only_copies():
+    T = np.eye(4)
+    record = {"cluster": 1}
+    p = Proposal(T, q=[0.01], record=record)
+    T[0, 3] = 5.0
+    record["cluster"] = 2
+    assert p.T_object_gripper[0, 3] == 0.0 and p.record == {"cluster": 1}
+    with pytest.raises(ValueError):
+        p.T_object_gripper[0, 0] = 2.0
+    assert Proposal(np.eye(4)).record == {} and Proposal(np.eye(4)).q is None
+
+
+@pytest.mark.parametrize(("T", "q"), [(np.eye(3), None), (np.eye(4), np.zeros((1, 1)))])
+def test_proposal_rejects_bad_shapes(T, q):
+    with pytest.raises(ValueError, match="shape"):
+        Proposal(T, q=q)
+
+
+def test_outcome_rejects_nan_error():
+    with pytest.raises(ValueError, match="inf"):
+        Outcome(Proposal(np.eye(4)), error=float("nan"), collision_free=True)
+
+
+# ------------------------------------------------------------------- helpers
+
+
+def test_random_rotation_is_haar_distributed():
+    R = random_rotation(np.random.default_rng(3), size=20000)
+    np.testing.assert_allclose(R @ R.transpose(0, 2, 1), np.broadcast_to(np.eye(3), R.shape),
+                               atol=1e-12)
+    np.testing.assert_allclose(np.linalg.det(R), 1.0, atol=1e-12)
+    # Haar measure on SO(3): E[R] = 0, E[tr(R)^2] = 1 (the defining representation is
+    # irreducible), and the rotation angle has CDF (t - sin t) / pi.
+    trace = np.trace(R, axis1=1, axis2=2)
+    assert np.abs(R.mean(axis=0)).max() < 0.03
+    assert abs(np.mean(trace**2) - 1.0) < 0.05
+    angle = np.arccos(np.clip((trace - 1.0) / 2.0, -1.0, 1.0))
+    for t in (0.5, 1.0, 2.0, 3.0):
+        assert abs(np.mean(angle <= t) - (t - np.sin(t)) / np.pi) < 0.015
+    assert random_rotation(np.random.default_rng(0)).shape == (3, 3)
+
+
+def test_grasp_centre_matches_the_urdf(gripper):
+    np.testing.assert_allclose(grasp_centre(gripper), GRASP_CENTRE, atol=1e-12)
+
+
+def test_place_gripper_puts_the_grasp_centre_at_the_point(gripper):
+    rng = np.random.default_rng(0)
+    R = random_rotation(rng, size=4)
+    centres = rng.normal(size=(4, 3))
+    T = place_gripper(gripper, centres, R)
+    assert T.shape == (4, 4, 4)
+    np.testing.assert_allclose(T[:, :3, :3], R)
+    np.testing.assert_allclose(np.einsum("nij,j->ni", T[:, :3, :3], GRASP_CENTRE) + T[:, :3, 3],
+                               centres, atol=1e-12)
+    np.testing.assert_array_equal(T[:, 3], np.tile([0.0, 0.0, 0.0, 1.0], (4, 1)))
+    single = place_gripper(gripper, centres[1], R[1])
+    assert single.shape == (4, 4)
+    np.testing.assert_allclose(single, T[1])
+
+
+# -------------------------------------------------------------------- uniform
+
+
+def test_uniform_draws_surface_points_uniformly(gripper):
+    obj = ObjectSurface(points=np.random.default_rng(0).normal(size=(10, 3)),
+                        normals=np.tile([0.0, 0.0, 1.0], (10, 1)), spacing=0.1)
+    sampler = UniformSampler()
+    rng = np.random.default_rng(1)
+    sampler.reset(obj, gripper, rng)
+    proposals = sampler.propose(5000, rng)
+    index = np.array([p.record["point"] for p in proposals])
+    counts = np.bincount(index, minlength=10)
+    assert np.all(np.abs(counts - 500) < 80)  # binomial sd ~ 21
+    for p, k in zip(proposals[:20], index[:20]):
+        T = p.T_object_gripper
+        np.testing.assert_allclose(T[:3, :3] @ GRASP_CENTRE + T[:3, 3], obj.points[k], atol=1e-12)
+
+
+def test_propose_before_reset_is_an_error():
+    for sampler in (UniformSampler(), RegretSampler()):
+        with pytest.raises(RuntimeError, match="reset"):
+            sampler.propose(1, np.random.default_rng(0))
+
+
+# --------------------------------------------------------------------- regret
+
+
+def _blobs(n_per_blob=50, spread=0.002):
+    """Six tight blobs at +-5 cm on each axis: k-means must find their means."""
+    rng = np.random.default_rng(7)
+    means = np.vstack([np.eye(3), -np.eye(3)]) * 0.05
+    points = (means[:, None, :] + spread * rng.standard_normal((6, n_per_blob, 3))).reshape(-1, 3)
+    obj = ObjectSurface(points=points, normals=np.tile([0.0, 0.0, 1.0], (len(points), 1)),
+                        spacing=spread)
+    return obj, points.reshape(6, n_per_blob, 3).mean(axis=1)
+
+
+def test_kmeans_finds_separated_blobs(gripper):
+    obj, blob_means = _blobs()
+    sampler = RegretSampler()
+    sampler.reset(obj, gripper, np.random.default_rng(0))
+    # match each blob to its nearest centre: a one-to-one match, at the blob mean
+    match = np.argmin(np.linalg.norm(blob_means[:, None] - sampler.centres[None], axis=2), axis=1)
+    assert sorted(match) == list(range(6))
+    np.testing.assert_allclose(sampler.centres[match], blob_means, atol=1e-12)
+    np.testing.assert_array_equal(sampler.labels.reshape(6, -1), np.repeat(match[:, None], 50, 1))
+
+
+def test_kmeans_result_is_a_lloyd_fixed_point(gripper, box):
+    sampler = RegretSampler(kmeans_iterations=100)
+    sampler.reset(box, gripper, np.random.default_rng(0))
+    d = np.linalg.norm(box.points[:, None, :] - sampler.centres[None], axis=2)
+    own = d[np.arange(len(box.points)), sampler.labels]
+    assert np.all(own <= d.min(axis=1) + 1e-15), "a point is closer to another centre"
+    for k in range(6):
+        np.testing.assert_allclose(sampler.centres[k], box.points[sampler.labels == k].mean(0),
+                                   atol=1e-12)
+
+
+def test_regret_bookkeeping_follows_algorithm_3(gripper):
+    obj, _ = _blobs()
+    sampler = RegretSampler(n_clusters=3, gamma=0.5)
+    rng = np.random.default_rng(0)
+    sampler.reset(obj, gripper, rng)
+    # (error, collision_free) fed back, and the cluster Alg. 3 must pick before each:
+    #   regret [0, 0, 0]         -> 0; 0.2 collides:   0.2 * 1.5           = 0.3
+    #   regret [.3, 0, 0]        -> 1; 0.1 free:       0.1
+    #   regret [.3, .1, 0]       -> 2; 0.4 free:       0.4
+    #   regret [.3, .1, .4]      -> 1; 0.3 collides:   (0.1 + 0.3)/2 * 1.5 = 0.3
+    #   regret [.3, .3, .4] tie  -> 0; 0.0 free:       (0.3 + 0.0)/2       = 0.15
+    steps = [(0, 0.0, 0.2, False), (1, 0.0, 0.1, True), (2, 0.0, 0.4, True),
+             (1, 0.1, 0.3, False), (0, 0.3, 0.0, True)]
+    for cluster, regret_before, error, free in steps:
+        (p,) = sampler.propose(1, rng)
+        assert p.record["cluster"] == cluster
+        assert p.record["regret"] == pytest.approx(regret_before)
+        T = p.T_object_gripper
+        np.testing.assert_allclose(T[:3, :3] @ GRASP_CENTRE + T[:3, 3], sampler.centres[cluster],
+                                   atol=1e-12)
+        sampler.observe([Outcome(p, error=error, collision_free=free)])
+    np.testing.assert_allclose(sampler.regret, [0.15, 0.3, 0.4])
+    np.testing.assert_array_equal(sampler.trials, [2, 2, 1])
+    assert sampler.best_cluster() == 0
+
+
+def test_regret_batch_proposes_at_one_cluster_with_distinct_rotations(gripper, box):
+    sampler = RegretSampler()
+    rng = np.random.default_rng(0)
+    sampler.reset(box, gripper, rng)
+    proposals = sampler.propose(4, rng)
+    assert {p.record["cluster"] for p in proposals} == {0}
+    rotations = np.array([p.T_object_gripper[:3, :3] for p in proposals])
+    assert len({r.tobytes() for r in rotations}) == 4
+    sampler.observe([Outcome(p, error=0.01, collision_free=True) for p in proposals])
+    assert sampler.trials[0] == 4 and sampler.regret[0] == pytest.approx(0.01)
+    sampler.reset(box, gripper, rng)
+    assert not sampler.trials.any() and not sampler.regret.any()
+
+
+def test_regret_rejects_foreign_outcomes(gripper, box):
+    sampler = RegretSampler()
+    sampler.reset(box, gripper, np.random.default_rng(0))
+    with pytest.raises(ValueError, match="cluster"):
+        sampler.observe([Outcome(Proposal(np.eye(4)), error=0.1, collision_free=True)])
+
+
+@pytest.mark.parametrize(
+    "params",
+    [{"n_clusters": 0}, {"n_clusters": 2.5}, {"n_clusters": True}, {"gamma": -0.1},
+     {"gamma": float("nan")}, {"gamma": "0.2"}, {"kmeans_iterations": 0}],
+)
+def test_regret_validates_parameters(params):
+    key = next(iter(params))
+    with pytest.raises(ConfigError, match=key):
+        RegretSampler(**params)
+
+
+def test_regret_needs_enough_points(gripper):
+    obj = ObjectSurface(points=np.eye(3), normals=np.eye(3), spacing=1.0)
+    with pytest.raises(ConfigError, match="n_clusters=6 exceeds the object's 3 points"):
+        RegretSampler().reset(obj, gripper, np.random.default_rng(0))
+
+
+def test_samplers_are_keyword_only():
+    with pytest.raises(TypeError):
+        RegretSampler(3)  # type: ignore[misc]
+    assert issubclass(RegretSampler, Sampler)
