@@ -62,8 +62,11 @@ __all__ = ["CollisionChecker", "CollisionReport", "Plane"]
 
 logger = logging.getLogger(__name__)
 
-_GRIPPER_SPACING = 4e-3  # sample spacing on gripper geometry, m
-_GRIPPER_MAX_SAMPLES = 1000  # per geometry element (larger ones are sampled coarser)
+_GRIPPER_SPACING = 5e-3  # sample spacing on gripper faces, m
+_GRIPPER_MAX_SAMPLES = 800  # per geometry element (larger ones are sampled coarser)
+_EDGE_SPACING = 2e-3  # sample spacing along sharp gripper edges, m
+_EDGE_MAX_SAMPLES = 600  # per geometry element
+_SHARP = 0.5  # dihedral angle that makes an edge sharp, rad
 _MAX_VERTICES = 500  # elements with more vertices keep only their convex-hull vertices
 _COARSE_PER_ELEMENT = 24  # coarse gripper points per element, for clearance bounds
 _OBJECT_MIN_SPACING = 0.5e-3  # finest resampling of a mesh object, m
@@ -71,6 +74,8 @@ _OBJECT_MAX_SAMPLES = 60_000
 _OBJECT_COARSE_SPACING = 5e-3  # coarse object subset, for clearance bounds, m
 _FAR = 0.02  # beyond this distance clearance uses the coarse subsets only, m
 _ON_SURFACE = 1e-6  # a contact point this close to an element lies on it, m
+_EYE = np.eye(3)
+_LAST_ROW = np.array([0.0, 0.0, 0.0, 1.0])
 
 
 @dataclass(frozen=True, eq=False)
@@ -187,6 +192,23 @@ def _farthest_points(points: np.ndarray, k: int) -> np.ndarray:
     return chosen
 
 
+def _edge_samples(mesh: trimesh.Trimesh, spacing: float, max_points: int) -> np.ndarray:
+    """Points along the sharp (and open) edges of a mesh, ``spacing`` apart, endpoints excluded, (N, 3)."""
+    sharp = mesh.face_adjacency_edges[mesh.face_adjacency_angles > _SHARP]
+    open_edges = mesh.edges_sorted[trimesh.grouping.group_rows(mesh.edges_sorted, require_count=1)]
+    edges = np.concatenate([sharp, open_edges]).reshape(-1, 2)
+    if not len(edges):
+        return np.empty((0, 3))
+    a, b = mesh.vertices[edges[:, 0]], mesh.vertices[edges[:, 1]]
+    length = np.linalg.norm(b - a, axis=1)
+    spacing = max(spacing, float(length.sum()) / max_points)
+    count = np.floor(length / spacing).astype(np.int64)  # interior points per edge
+    edge = np.repeat(np.arange(len(edges)), count)
+    rank = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count) + 1
+    s = (rank / (count[edge] + 1))[:, None]
+    return a[edge] + s * (b[edge] - a[edge])
+
+
 class _SurfaceModel:
     """Points with outward normals and a KD-tree: the signed-distance estimate of a surface.
 
@@ -194,12 +216,14 @@ class _SurfaceModel:
     to close the gaps of random sampling). A query point ``p`` is read against those of its 8
     nearest samples whose disk it projects into: its height ``h = (p - o) . n_o`` above the
     one with the smallest ``|h|`` (exact over flat faces, negative inside). Near a sharp edge
-    the faces disagree; the shape of the edge decides: at a convex edge (the two samples lie
-    below each other's tangent planes) the object is locally the intersection of the
-    half-spaces, so the reading is the largest ``h`` of the two; at a concave edge it is their
-    union, and the reading is the smallest. (On smooth surfaces the same rule picks the
-    tightest tangent-plane bound: a convex body lies below every tangent plane.) A point that projects into no disk lies beyond a convex
-    edge or corner, outside, and reads its distance to the nearest sample (an upper bound).
+    the faces disagree, and the shape of the edge decides. At a convex edge (the two samples
+    lie below each other's tangent planes) the object lies below both planes, so the reading
+    is the largest ``h`` of the two; this holds for any of the 8 samples, whether or not
+    ``p`` projects into its disk. At a concave edge the object is locally the union of the
+    half-spaces, and the reading is the smallest ``h`` of the two. (On smooth surfaces the
+    same rule picks the tightest tangent-plane bound: a convex body lies below every tangent
+    plane.) A point that projects into no disk lies beyond a convex edge or corner, outside,
+    and reads its distance to the nearest sample (an upper bound).
 
     Attributes:
         points, normals: (N, 3) samples and unit outward normals.
@@ -240,7 +264,8 @@ class _SurfaceModel:
         # (q - q0) . n0 + (q0 - q) . n: how far each sample and the first lie below each other's plane
         below = np.einsum("mki,mki->mk", q - q0[:, None, :], n0[:, None, :] - nq)
         eps = self.edge * self.spacing
-        reading = np.maximum(h0, np.where(cand & (below < -eps), h, -np.inf).max(axis=1))
+        convex = np.isfinite(dist) & (below < -eps)
+        reading = np.maximum(h0, np.where(convex, h, -np.inf).max(axis=1))
         reading = np.minimum(reading, np.where(cand & (below > eps), h, np.inf).min(axis=1))
         return np.where(cand[rows, first], reading, dist[:, 0])
 
@@ -280,6 +305,19 @@ class _Element:
         """True when object points inside it can be detected."""
         return self.planes is not None or self.solid is not None
 
+    def face_distance(self, local: np.ndarray) -> np.ndarray:
+        """Signed distance of link-frame points (M, 3) to this convex element, metres (M,).
+
+        Exact inside (negative) and where the nearest feature is a face; ``inf`` elsewhere
+        (nearest to an edge or a vertex, which the element's own samples cover).
+        """
+        values = local @ self.planes[:, :3].T - self.planes[:, 3]
+        face = values.argmax(axis=1)
+        out = values[np.arange(len(local)), face]
+        foot = local - out[:, None] * self.planes[face, :3]
+        on_face = (foot @ self.planes[:, :3].T - self.planes[:, 3]).max(axis=1) <= 1e-9
+        return np.where(on_face | (out <= 0), out, np.inf)
+
     def depth_of(self, local: np.ndarray) -> float:
         """Deepest penetration of link-frame points (M, 3) into this element, metres (0 if none)."""
         if self.planes is not None:
@@ -302,7 +340,7 @@ def _build_element(geom: LinkGeometry, frame: int, rng: np.random.Generator) -> 
     samples, normals, spacing = _surface_samples(mesh.vertices, mesh.faces, _GRIPPER_SPACING,
                                                  _GRIPPER_MAX_SAMPLES, rng)
     corners = mesh.vertices if len(mesh.vertices) <= _MAX_VERTICES else hull
-    points = np.concatenate([samples, corners])
+    points = np.concatenate([samples, _edge_samples(mesh, _EDGE_SPACING, _EDGE_MAX_SAMPLES), corners])
     coarse = _farthest_points(points, _COARSE_PER_ELEMENT)
     radius, parent = cKDTree(points[coarse]).query(points)
     element = _Element(link=geom.link, name=geom.name, frame=frame, contact=False, hull=hull,
@@ -328,28 +366,38 @@ def _lies_on(mesh: trimesh.Trimesh, points: np.ndarray) -> bool:
 
 
 # ------------------------------------------------------------------ the object
-def _object_model(obj: ObjectSurface, tolerance: float, rng: np.random.Generator) -> _SurfaceModel:
-    """Dense samples of a closed, outward-wound mesh object, else the object's own points."""
+def _object_model(obj: ObjectSurface, tolerance: float,
+                  rng: np.random.Generator) -> tuple[_SurfaceModel, np.ndarray]:
+    """The object's signed-distance model and its probe points (M, 3).
+
+    The model uses dense samples of a closed, outward-wound mesh, else the object's own
+    points. Probe points (searched inside gripper elements) add a mesh's vertices and points
+    along its sharp edges.
+    """
     given = _SurfaceModel(obj.points, obj.normals, obj.spacing)
     if obj.mesh_vertices is None or obj.mesh_faces is None:
-        return given
+        return given, given.points
     vertices = np.asarray(obj.mesh_vertices, dtype=float)
     faces = np.asarray(obj.mesh_faces, dtype=np.int64)
     mesh = trimesh.Trimesh(vertices, faces, process=False, validate=False)
-    if not (mesh.is_watertight and mesh.is_winding_consistent and mesh.volume > 0):
+    model = given
+    if mesh.is_watertight and mesh.is_winding_consistent and mesh.volume > 0:
+        spacing = min(obj.spacing, max(tolerance / 2.0, _OBJECT_MIN_SPACING))
+        points, normals, spacing = _surface_samples(vertices, faces, spacing, _OBJECT_MAX_SAMPLES, rng)
+        dense = _SurfaceModel(points, normals, spacing)
+        _, idx = dense.tree.query(obj.points, workers=1)
+        agree = float(np.mean(np.einsum("ij,ij->i", dense.normals[idx], obj.normals) > 0))
+        if agree >= 0.9:
+            model = dense
+            logger.debug("%s: resampled %d points at %.2g m for collision checks", obj.name,
+                         len(points), spacing)
+        else:
+            logger.warning("%s: only %.0f%% of the object's normals agree with its mesh winding; "
+                           "collision checks use the object's points", obj.name, 100 * agree)
+    else:
         logger.debug("%s: mesh is not closed and outward; using its %d points", obj.name, obj.n_points)
-        return given
-    spacing = min(obj.spacing, max(tolerance / 2.0, _OBJECT_MIN_SPACING))
-    points, normals, spacing = _surface_samples(vertices, faces, spacing, _OBJECT_MAX_SAMPLES, rng)
-    dense = _SurfaceModel(points, normals, spacing)
-    _, idx = dense.tree.query(obj.points, workers=1)
-    agree = float(np.mean(np.einsum("ij,ij->i", dense.normals[idx], obj.normals) > 0))
-    if agree < 0.9:
-        logger.warning("%s: only %.0f%% of the object's normals agree with its mesh winding; "
-                       "collision checks use the object's points", obj.name, 100 * agree)
-        return given
-    logger.debug("%s: resampled %d points at %.2g m for collision checks", obj.name, len(points), spacing)
-    return dense
+    edges = _edge_samples(mesh, model.spacing, _OBJECT_MAX_SAMPLES // 4)
+    return model, np.concatenate([model.points, edges, vertices])
 
 
 def _segment_min(values: np.ndarray, owner: np.ndarray, n: int) -> np.ndarray:
@@ -404,13 +452,18 @@ class CollisionChecker:
         self._plane_normals = np.array([p.normal for p in self.obstacles]).reshape(-1, 3)
         self._plane_offsets = np.array([p.offset for p in self.obstacles])
 
-        self._surface = _object_model(obj, self.tolerance, rng)
+        self._surface, probe = _object_model(obj, self.tolerance, rng)
         pts = self._surface.points
-        self._lo, self._hi = pts.min(axis=0), pts.max(axis=0)
+        self._lo, self._hi = probe.min(axis=0), probe.max(axis=0)
+        self._probe = probe[np.argsort(probe[:, 0])]  # sorted by x, for box queries
+        self._probe_x = np.ascontiguousarray(self._probe[:, 0])
         coarse = _voxel_thin(pts, max(_OBJECT_COARSE_SPACING, 2 * self._surface.spacing))
         self._coarse_tree = cKDTree(pts[coarse])
         dist, _ = self._coarse_tree.query(pts, workers=1)
         self._coarse_radius = float(dist.max())
+        # Readings beyond ``best`` are not needed, but the edge rule needs the samples of the
+        # other face, which can lie a few disk radii farther than the nearest one.
+        self._reach = 3.0 * _SurfaceModel.disk * self._surface.spacing
 
     def _build_gripper(self, gripper: Gripper, rng: np.random.Generator) -> None:
         links = list(dict.fromkeys(g.link for g in gripper.geometries))
@@ -455,15 +508,15 @@ class CollisionChecker:
     # ---------------------------------------------------------------- inputs
     def _inputs(self, T_object_gripper, q) -> tuple[np.ndarray, np.ndarray]:
         T = np.asarray(T_object_gripper, dtype=float)
-        if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+        if T.shape != (4, 4) or not np.isfinite(T).all():
             raise InvalidInputError(f"T_object_gripper must be a finite 4x4 homogeneous transform, "
                                     f"got shape {T.shape}; pass the fitted palm pose")
         R = T[:3, :3]
-        if np.abs(R.T @ R - np.eye(3)).max() > 1e-6 or np.abs(T[3] - (0, 0, 0, 1)).max() > 1e-12:
+        if np.abs(R.T @ R - _EYE).max() > 1e-6 or np.abs(T[3] - _LAST_ROW).max() > 1e-12:
             raise InvalidInputError("T_object_gripper is not a rigid transform (rotation not "
                                     "orthonormal or last row not [0 0 0 1]); re-orthonormalise it")
         q = np.asarray(q, dtype=float).reshape(-1)
-        if q.shape != (self._model.nq,) or not np.all(np.isfinite(q)):
+        if q.shape != (self._model.nq,) or not np.isfinite(q).all():
             raise InvalidInputError(f"q must hold {self._model.nq} finite joint values "
                                     f"({', '.join(self.gripper.joint_names)}), got shape {q.shape}")
         return T, q
@@ -512,7 +565,7 @@ class CollisionChecker:
         near = np.flatnonzero(box_distance == 0.0)
         if len(near):
             best = self._penetration(near, R, t, lo, hi, depth, where, done, best)
-        best = self._clearance(box_distance, R, t, done, best)
+        best = self._clearance(box_distance, R, t, lo, hi, done, best)
         return self._report(depth, where, best)
 
     def _penetration(self, near, R, t, lo, hi, depth, where, done, best: float) -> float:
@@ -539,25 +592,28 @@ class CollisionChecker:
                 best = min(best, lowest[k])
         return best
 
+    def _probe_in_box(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+        """Object probe points inside the box [lo, hi] (object frame), (M, 3)."""
+        a, b = np.searchsorted(self._probe_x, (lo[0], hi[0]))
+        pts = self._probe[a:b]
+        return pts[np.all((pts >= lo) & (pts <= hi), axis=1)]
+
     def _object_inside(self, e: _Element, R: np.ndarray, t: np.ndarray, lo: np.ndarray,
                        hi: np.ndarray) -> float:
-        """Deepest object sample inside element ``e`` (posed by R, t), metres."""
-        centre, radius = 0.5 * (lo + hi), 0.5 * float(np.linalg.norm(hi - lo))
-        idx = self._surface.tree.query_ball_point(centre, radius, workers=1)
-        if not idx:
-            return 0.0
-        pts = self._surface.points[idx]
-        pts = pts[np.all((pts >= lo) & (pts <= hi), axis=1)]
+        """Deepest object probe point inside element ``e`` (posed by R, t), metres."""
+        pts = self._probe_in_box(lo, hi)
         return e.depth_of((pts - t) @ R) if len(pts) else 0.0
 
-    def _clearance(self, box_distance, R, t, done, best: float) -> float:
-        """Smallest reading of a non-contact element, bounded coarse-to-fine; at most ``best``."""
+    def _clearance(self, box_distance, R, t, lo, hi, done, best: float) -> float:
+        """Smallest distance of a non-contact element to the object, bounded coarse-to-fine; at most ``best``."""
         spacing = self._surface.spacing
         cand = np.flatnonzero(~self._contact & (box_distance - spacing < best))
         if not len(cand):
             return best
         # 1. Coarse gripper points against the coarse object subset (an upper bound).
-        cells = np.flatnonzero(np.isin(self._coarse_owner, cand))
+        mask = np.zeros(len(self._elements), dtype=bool)
+        mask[cand] = True
+        cells = np.flatnonzero(mask[self._coarse_owner])
         ids = self._coarse[cells]
         posed = self._posed(ids, R, t)
         far, _ = self._coarse_tree.query(posed, workers=1)
@@ -568,18 +624,29 @@ class CollisionChecker:
         read = (bound - slack < best) & (bound <= _FAR) & ~done[ids]
         lower = bound.copy()
         if read.any():
-            lower[read] = self._surface.signed_distance(posed[read], bound=best + spacing)
+            lower[read] = self._surface.signed_distance(posed[read], bound=best + self._reach)
             best = min(best, float(lower[read].min()))
         done[ids] = True
         # 3. Read every point of the cells that may still hold something closer.
         refine = cells[(lower - slack < best) & (lower <= _FAR)]
-        if not len(refine):
-            return best
-        ids = np.concatenate([self._cell_order[self._cell_start[c]:self._cell_start[c + 1]] for c in refine])
-        ids = ids[~done[ids]]
-        if len(ids):
-            best = min(best, float(self._surface.signed_distance(self._posed(ids, R, t),
-                                                                 bound=best + spacing).min()))
+        if len(refine):
+            ids = np.concatenate([self._cell_order[self._cell_start[c]:self._cell_start[c + 1]]
+                                  for c in refine])
+            ids = ids[~done[ids]]
+            if len(ids):
+                reading = self._surface.signed_distance(self._posed(ids, R, t), bound=best + self._reach)
+                best = min(best, float(reading.min()))
+        # 4. Object features facing a flat side of a convex element (its samples are sparse there).
+        for k in cand[np.argsort(box_distance[cand])]:
+            reach = min(best, _FAR)
+            if box_distance[k] >= reach:
+                break
+            e = self._elements[k]
+            if e.planes is None:
+                continue
+            pts = self._probe_in_box(lo[k] - reach, hi[k] + reach)
+            if len(pts):
+                best = min(best, float(e.face_distance((pts - t[e.frame]) @ R[e.frame]).min()))
         return best
 
     def _report(self, depth: np.ndarray, where: np.ndarray, clearance: float) -> CollisionReport:

@@ -3,6 +3,7 @@
 With the palm fixed, moving the joints by ``dq`` moves contact point ``i`` by
 ``R J_i dq`` (``J_i`` its point Jacobian in the gripper frame) and turns its
 normal by ``(R Jw_i dq) x n_i``. The step minimises the linearised fitting error
+(rows built by :meth:`isf.ipfo.MatchedPairs.finger_rows`)
 
 .. math::
     \\min_{\\delta q} \\|A \\delta q - b\\|^2 + \\lambda \\|\\delta q\\|^2
@@ -21,44 +22,8 @@ import osqp
 import scipy.sparse as sp
 
 from .exceptions import QPStepError
-from .se3 import cross
 
-__all__ = ["FingerStepQP", "finger_rows"]
-
-
-def finger_rows(
-    R: np.ndarray,
-    points: np.ndarray,
-    normals: np.ndarray,
-    J_points: np.ndarray,
-    J_rotation: np.ndarray,
-    targets: np.ndarray,
-    target_normals: np.ndarray,
-    *,
-    normal_weight: float,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Rows ``A`` (K', n) and right-hand side ``b`` (K',) of the finger least squares.
-
-    Args:
-        R: palm rotation ``R_object_gripper``, (3, 3).
-        points: matched contact points in the object frame, (K, 3), metres.
-        normals: their normals in the gripper frame, (K, 3).
-        J_points: point Jacobians in the gripper frame, (K, 3, n).
-        J_rotation: angular Jacobians of their links in the gripper frame, (K, 3, n).
-        targets: matched object points, (K, 3), metres.
-        target_normals: object normals at the targets, (K, 3).
-        normal_weight: ``alpha``, metres.
-    """
-    m = target_normals @ R  # n^q expressed in the gripper frame, (K, 3)
-    A = np.einsum("kj,kjn->kn", m, J_points)
-    b = -np.einsum("kj,kj->k", points - targets, target_normals)
-    if normal_weight > 0.0 and np.any(J_rotation):
-        # d(n.m)/dq = (Jw dq) . (n x m)
-        An = normal_weight * np.einsum("kj,kjn->kn", cross(normals, m), J_rotation)
-        bn = -normal_weight * (np.einsum("kj,kj->k", normals, m) + 1.0)
-        A = np.concatenate([A, An])
-        b = np.concatenate([b, bn])
-    return A, b
+__all__ = ["FingerStepQP"]
 
 
 class FingerStepQP:

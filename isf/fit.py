@@ -22,7 +22,7 @@ from .correspondence import match
 from .exceptions import InvalidInputError
 from .finger_step import FingerStepQP
 from .gripper import Gripper
-from .ipfo import fitting_error, ipfo
+from .ipfo import MatchedPairs, ipfo
 from .object_surface import ObjectSurface
 from .result import FitResult, FitStatus, IterationRecord
 
@@ -78,15 +78,15 @@ def fit(
             if len(pairs.source) < config.min_pairs:
                 status = FitStatus.LOST_CONTACT
                 break
-            matched = index[pairs.source]
-            targets, target_normals = obj.points[pairs.target], obj.normals[pairs.target]
-            step = ipfo(gripper, matched, targets, target_normals, T, q, qp, config)
+            matched = MatchedPairs(gripper, index[pairs.source], obj.points[pairs.target],
+                                   obj.normals[pairs.target])
+            step = ipfo(matched, T, q, qp, config)
             T, q = step.T_object_gripper, step.q
             displacement = float(np.linalg.norm(_object_points(gripper, T, q, index) - start))
             eta = 1.0 if displacement <= 1e-12 else displacement / previous
             history.append(IterationRecord(
                 level=level, iteration=iteration,
-                mean_distance=_mean_plane_distance(gripper, T, q, matched, targets, target_normals),
+                mean_distance=_mean_plane_distance(matched, T, q),
                 error=step.error, n_pairs=len(matched), q=q.copy(), ipfo_errors=step.errors,
             ))
         if status is FitStatus.LOST_CONTACT:
@@ -135,21 +135,22 @@ def _check_joints(gripper: Gripper, q: np.ndarray | None) -> np.ndarray:
 
 def _object_points(gripper: Gripper, T: np.ndarray, q: np.ndarray, index: np.ndarray) -> np.ndarray:
     """Contact points ``index`` at ``(T, q)`` in the object frame, (len(index), 3)."""
-    points = gripper.contact_kinematics(q, index).points
+    points = gripper.contact_points(q, index)[0]
     return points @ T[:3, :3].T + T[:3, 3]
 
 
-def _mean_plane_distance(gripper, T, q, index, targets, target_normals) -> float:
-    points = _object_points(gripper, T, q, index)
-    return float(np.mean(np.abs(np.einsum("kj,kj->k", points - targets, target_normals))))
+def _mean_plane_distance(pairs: MatchedPairs, T: np.ndarray, q: np.ndarray) -> float:
+    """Mean |point-to-plane distance| of the pairs at ``(T, q)``, metres."""
+    points = pairs.evaluate(pairs.gripper.link_kinematics(q))[0] @ T[:3, :3].T + T[:3, 3]
+    return float(np.mean(np.abs(np.einsum("kj,kj->k", points - pairs.targets, pairs.target_normals))))
 
 
 def _final_result(gripper, obj, T, q, config, status, history, started) -> FitResult:
     """Score the final state on the finest level with fresh correspondences."""
-    kin = gripper.contact_kinematics(q)
+    points, normals = gripper.contact_points(q)
     R, t = T[:3, :3], T[:3, 3]
-    points = kin.points @ R.T + t
-    normals = kin.normals @ R.T
+    points = points @ R.T + t
+    normals = normals @ R.T
     pairs = match(
         obj, points, outlier_factor=config.outlier_factor, outlier_floor=config.outlier_floor,
         reject_duplicates=config.reject_duplicates,
@@ -161,8 +162,9 @@ def _final_result(gripper, obj, T, q, config, status, history, started) -> FitRe
         cosines = np.clip(-np.einsum("kj,kj->k", normals[src], target_normals), -1.0, 1.0)
         mean_distance = float(plane.mean())
         misalignment = float(np.arccos(cosines).mean())
-        error = fitting_error(T, kin.points[src], kin.normals[src], targets, target_normals,
-                              config.normal_weight)
+        d = plane
+        c = 1.0 - cosines
+        error = float(d @ d + config.normal_weight**2 * (c @ c))
     else:
         mean_distance = misalignment = error = float("inf")
     near, _ = obj.nearest(points)

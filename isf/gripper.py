@@ -24,7 +24,7 @@ from typing import NamedTuple
 import numpy as np
 import pinocchio as pin
 
-__all__ = ["ContactKinematics", "ContactSurface", "Gripper", "LinkGeometry"]
+__all__ = ["ContactKinematics", "ContactSurface", "Gripper", "LinkGeometry", "LinkKinematics"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -82,6 +82,24 @@ class ContactKinematics(NamedTuple):
     J_rotation: np.ndarray
 
 
+class LinkKinematics(NamedTuple):
+    """Poses and Jacobians of the links that carry contact surfaces, gripper frame.
+
+    Index ``k`` is the link of :attr:`Gripper.contact_links` ``[k]``.
+
+    Attributes:
+        rotations: ``R_gripper_link``, shape (L, 3, 3).
+        positions: link origins, shape (L, 3), metres.
+        J_linear: Jacobians of the link origins, shape (L, 3, n_joints).
+        J_angular: angular Jacobians of the links, shape (L, 3, n_joints).
+    """
+
+    rotations: np.ndarray
+    positions: np.ndarray
+    J_linear: np.ndarray
+    J_angular: np.ndarray
+
+
 @dataclass(eq=False)
 class Gripper:
     """Finger kinematics (Pinocchio, mimic joints honoured) plus contact surfaces.
@@ -133,6 +151,8 @@ class Gripper:
         # Stack every surface into one array; remember which link frame, which
         # surface and which farthest-point rank each point has.
         links = sorted({s.link for s in self.surfaces}, key=[s.link for s in self.surfaces].index)
+        self.contact_links: tuple[str, ...] = tuple(links)
+        """The links that carry contact surfaces, in order of first appearance."""
         self._link_frames = np.array([self.model.getFrameId(link) for link in links], dtype=int)
         link_of = {link: k for k, link in enumerate(links)}
         self.points_link = np.concatenate([s.points for s in self.surfaces]).astype(float)
@@ -144,6 +164,7 @@ class Gripper:
             [np.full(len(s.points), k) for k, s in enumerate(self.surfaces)]
         )
         self.point_rank = np.concatenate([np.arange(len(s.points)) for s in self.surfaces])
+        self._points_of_link = [np.flatnonzero(self.point_link == k) for k in range(len(links))]
 
     # ------------------------------------------------------------------ sizes
     @property
@@ -184,16 +205,8 @@ class Gripper:
                 poses[frame.name] = self._data.oMf[fid].homogeneous.copy()
         return poses
 
-    def contact_kinematics(self, q: np.ndarray, mask: np.ndarray | None = None) -> ContactKinematics:
-        """Contact points, normals and their Jacobians at ``q``, gripper frame.
-
-        Args:
-            q: joint vector, shape (n_joints,).
-            mask: optional boolean mask or index array selecting points.
-
-        Returns:
-            :class:`ContactKinematics` for the selected points.
-        """
+    def link_kinematics(self, q: np.ndarray) -> LinkKinematics:
+        """Poses and Jacobians of the contact links at ``q`` (one Pinocchio pass)."""
         model, data = self.model, self._data
         pin.computeJointJacobians(model, data, np.asarray(q, dtype=float))
         pin.updateFramePlacements(model, data)
@@ -206,20 +219,46 @@ class Gripper:
             p[k] = data.oMf[fid].translation
             # eigenpy returns a (6,) vector when nv == 1
             J[k] = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED).reshape(6, -1)
+        return LinkKinematics(R, p, J[:, :3], J[:, 3:])
+
+    def contact_kinematics(self, q: np.ndarray, mask: np.ndarray | None = None) -> ContactKinematics:
+        """Contact points, normals and their Jacobians at ``q``, gripper frame.
+
+        Args:
+            q: joint vector, shape (n_joints,).
+            mask: optional boolean mask or index array selecting points.
+
+        Returns:
+            :class:`ContactKinematics` for the selected points.
+        """
+        links = self.link_kinematics(q)
         sel = slice(None) if mask is None else mask
         li = self.point_link[sel]
-        Rl = R[li]
+        Rl = links.rotations[li]
         r = np.einsum("nij,nj->ni", Rl, self.points_link[sel])
         normals = np.einsum("nij,nj->ni", Rl, self.normals_link[sel])
-        Jv = J[li, :3]
-        Jw = J[li, 3:]
+        Jv = links.J_linear[li]
+        Jw = links.J_angular[li]
         # v_point = v_link + w x r  ->  J_point = Jv + Jw x r, column by column
         rx, ry, rz = r[:, 0, None], r[:, 1, None], r[:, 2, None]
         wx, wy, wz = Jw[:, 0], Jw[:, 1], Jw[:, 2]
         J_points = Jv + np.stack([wy * rz - wz * ry, wz * rx - wx * rz, wx * ry - wy * rx], axis=1)
-        return ContactKinematics(r + p[li], normals, J_points, Jw)
+        return ContactKinematics(r + links.positions[li], normals, J_points, Jw)
 
-    def contact_points(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """All contact points and normals at ``q`` in the gripper frame, each (n_points, 3)."""
-        kin = self.contact_kinematics(q)
-        return kin.points, kin.normals
+    def contact_points(self, q: np.ndarray, mask: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Contact points and normals at ``q`` in the gripper frame, each (n_selected, 3).
+
+        Args:
+            q: joint vector, shape (n_joints,).
+            mask: optional boolean mask or index array selecting points (default all).
+        """
+        links = self.link_kinematics(q)
+        points = np.empty_like(self.points_link)
+        normals = np.empty_like(self.normals_link)
+        for k, idx in enumerate(self._points_of_link):
+            R = links.rotations[k]
+            points[idx] = self.points_link[idx] @ R.T + links.positions[k]
+            normals[idx] = self.normals_link[idx] @ R.T
+        if mask is None:
+            return points, normals
+        return points[mask], normals[mask]

@@ -7,11 +7,12 @@ from typing import NamedTuple
 import numpy as np
 
 from .config import FitConfig
-from .finger_step import FingerStepQP, finger_rows
-from .gripper import Gripper
+from .finger_step import FingerStepQP
+from .gripper import Gripper, LinkKinematics
 from .palm_step import palm_step
+from .se3 import cross
 
-__all__ = ["IPFOResult", "fitting_error", "ipfo"]
+__all__ = ["IPFOResult", "MatchedPairs", "ipfo"]
 
 
 class IPFOResult(NamedTuple):
@@ -21,8 +22,8 @@ class IPFOResult(NamedTuple):
         T_object_gripper: palm pose, (4, 4).
         q: joint vector, (n_joints,).
         error: total fitting error E at the result, m^2 (eq. 9a).
-        iterations: palm/finger alternations performed.
-        errors: E after each alternation (the paper's Fig. 5b), m^2.
+        iterations: palm/finger alternations kept.
+        errors: E after each kept alternation (the paper's Fig. 5b), m^2.
     """
 
     T_object_gripper: np.ndarray
@@ -32,38 +33,83 @@ class IPFOResult(NamedTuple):
     errors: tuple[float, ...]
 
 
-def fitting_error(
-    T: np.ndarray,
-    points: np.ndarray,
-    normals: np.ndarray,
-    targets: np.ndarray,
-    target_normals: np.ndarray,
-    normal_weight: float,
-) -> float:
-    """``E = E_p + alpha^2 E_n`` (eq. 7-9) for contact points given in the gripper frame, m^2.
+class MatchedPairs:
+    """Matched (contact point, object point) pairs, grouped by the contact point's link.
+
+    Grouping lets every per-link quantity (pose, Jacobian) act on a block of
+    points with one matrix product instead of per-point tensors.
 
     Args:
-        T: ``T_object_gripper``, (4, 4).
-        points, normals: matched contact points and normals, gripper frame, (K, 3).
-        targets, target_normals: their object points and normals, (K, 3).
-        normal_weight: ``alpha``, metres.
+        gripper: the gripper.
+        point_index: indices of the matched contact points into the gripper's points, (K,).
+        targets: matched object points, object frame, (K, 3), metres.
+        target_normals: object normals at the targets, (K, 3).
     """
-    R, t = T[:3, :3], T[:3, 3]
-    d = np.einsum("kj,kj->k", points @ R.T + t - targets, target_normals)
-    c = np.einsum("kj,kj->k", normals @ R.T, target_normals) + 1.0
-    return float(d @ d + normal_weight**2 * (c @ c))
+
+    def __init__(self, gripper: Gripper, point_index, targets, target_normals):
+        order = np.argsort(gripper.point_link[point_index], kind="stable")
+        self.gripper = gripper
+        self.point_index = np.asarray(point_index)[order]
+        self.targets = np.asarray(targets)[order]
+        self.target_normals = np.asarray(target_normals)[order]
+        self._points = gripper.points_link[self.point_index]
+        self._normals = gripper.normals_link[self.point_index]
+        links = gripper.point_link[self.point_index]
+        edges = np.flatnonzero(np.diff(links)) + 1
+        starts = np.r_[0, edges]
+        stops = np.r_[edges, len(links)]
+        self._groups = [(int(links[a]), slice(int(a), int(b))) for a, b in zip(starts, stops) if b > a]
+
+    def __len__(self) -> int:
+        return len(self.point_index)
+
+    def evaluate(self, links: LinkKinematics) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Contact points, normals and offsets from their link origins, gripper frame, each (K, 3)."""
+        offsets = np.empty_like(self._points)
+        normals = np.empty_like(self._normals)
+        points = np.empty_like(self._points)
+        for k, s in self._groups:
+            R = links.rotations[k]
+            offsets[s] = self._points[s] @ R.T
+            normals[s] = self._normals[s] @ R.T
+            points[s] = offsets[s] + links.positions[k]
+        return points, normals, offsets
+
+    def error(self, T: np.ndarray, points: np.ndarray, normals: np.ndarray, normal_weight: float) -> float:
+        """``E = E_p + alpha^2 E_n`` (eq. 7-9) at palm pose ``T`` for gripper-frame points/normals, m^2."""
+        R, t = T[:3, :3], T[:3, 3]
+        d = np.einsum("kj,kj->k", points @ R.T + t - self.targets, self.target_normals)
+        c = np.einsum("kj,kj->k", normals @ R.T, self.target_normals) + 1.0
+        return float(d @ d + normal_weight**2 * (c @ c))
+
+    def finger_rows(self, T, points, normals, offsets, links: LinkKinematics, normal_weight: float):
+        """Rows ``A`` (K', n) and right-hand side ``b`` (K',) of the finger least squares.
+
+        With the palm at ``T`` fixed, moving the joints by ``dq`` moves point ``i``
+        (on link ``k``, offset ``r_i`` from its origin) by ``R (Jv_k + Jw_k x r_i) dq``,
+        so its point-to-plane row is ``m_i^T Jv_k + (r_i x m_i)^T Jw_k`` with
+        ``m_i = R^T n^q_i``, and its right-hand side ``-(R p_i + t - q_i)^T n^q_i``.
+        Joints that turn links add alpha-weighted normal rows
+        ``alpha (n_i x m_i)^T Jw_k``, ``-alpha (n_i^T m_i + 1)``.
+        """
+        R, t = T[:3, :3], T[:3, 3]
+        m = self.target_normals @ R
+        n_joints = links.J_linear.shape[2]
+        A = np.empty((len(self), n_joints))
+        for k, s in self._groups:
+            A[s] = m[s] @ links.J_linear[k] + cross(offsets[s], m[s]) @ links.J_angular[k]
+        b = -np.einsum("kj,kj->k", points @ R.T + t - self.targets, self.target_normals)
+        if normal_weight > 0.0 and np.any(links.J_angular):
+            An = np.empty((len(self), n_joints))
+            for k, s in self._groups:
+                An[s] = normal_weight * (cross(normals[s], m[s]) @ links.J_angular[k])
+            bn = -normal_weight * (np.einsum("kj,kj->k", normals, m) + 1.0)
+            A, b = np.concatenate([A, An]), np.concatenate([b, bn])
+        return A, b
 
 
-def ipfo(
-    gripper: Gripper,
-    point_index: np.ndarray,
-    targets: np.ndarray,
-    target_normals: np.ndarray,
-    T: np.ndarray,
-    q: np.ndarray,
-    qp: FingerStepQP,
-    config: FitConfig,
-) -> IPFOResult:
+def ipfo(pairs: MatchedPairs, T: np.ndarray, q: np.ndarray, qp: FingerStepQP | None,
+         config: FitConfig) -> IPFOResult:
     """Alternate palm and finger steps until E stops decreasing (Algorithm 1).
 
     The loop stops when E per pair decreases by less than
@@ -71,47 +117,44 @@ def ipfo(
     or when an alternation would raise E (that alternation is undone).
 
     Args:
-        gripper: the gripper.
-        point_index: indices of the matched contact points into the gripper's points, (K,).
-        targets, target_normals: matched object points and normals, object frame, (K, 3).
+        pairs: the matched pairs (fixed during IPFO).
         T: initial ``T_object_gripper``, (4, 4).
         q: initial joints, (n_joints,).
-        qp: the finger-step QP (reused across calls).
+        qp: the finger-step QP (reused across calls), or None for a gripper without joints.
         config: fit parameters.
     """
+    gripper = pairs.gripper
     alpha = config.normal_weight
-    threshold = config.ipfo_tolerance * len(point_index)
-    kin = gripper.contact_kinematics(q, point_index)
-    error = fitting_error(T, kin.points, kin.normals, targets, target_normals, alpha)
+    threshold = config.ipfo_tolerance * len(pairs)
+    move_fingers = qp is not None and not config.lock_fingers
+    links = gripper.link_kinematics(q)
+    points, normals, offsets = pairs.evaluate(links)
+    error = pairs.error(T, points, normals, alpha)
     errors = []
-    iterations = 0
-    while iterations < config.max_ipfo_iterations:
-        iterations += 1
+    while len(errors) < config.max_ipfo_iterations:
         R, t = T[:3, :3], T[:3, 3]
         T_new = palm_step(
-            kin.points @ R.T + t, kin.normals @ R.T, targets, target_normals,
+            points @ R.T + t, normals @ R.T, pairs.targets, pairs.target_normals,
             normal_weight=alpha, max_rotation=config.max_rotation_step,
         ) @ T
         q_new = q
-        if not config.lock_fingers and gripper.n_joints:
-            R, t = T_new[:3, :3], T_new[:3, 3]
-            A, b = finger_rows(
-                R, kin.points @ R.T + t, kin.normals, kin.J_points, kin.J_rotation,
-                targets, target_normals, normal_weight=alpha,
-            )
+        if move_fingers:
+            A, b = pairs.finger_rows(T_new, points, normals, offsets, links, alpha)
             step = np.where(gripper.revolute, config.max_revolute_step, np.inf)
-            lower = np.maximum(gripper.lower - q, -step)
-            upper = np.minimum(gripper.upper - q, step)
-            q_new = gripper.clip(q + qp.solve(A, b, np.minimum(lower, 0.0), np.maximum(upper, 0.0)))
-        kin_new = gripper.contact_kinematics(q_new, point_index)
-        error_new = fitting_error(T_new, kin_new.points, kin_new.normals, targets, target_normals, alpha)
+            lower = np.minimum(np.maximum(gripper.lower - q, -step), 0.0)
+            upper = np.maximum(np.minimum(gripper.upper - q, step), 0.0)
+            q_new = gripper.clip(q + qp.solve(A, b, lower, upper))
+            links_new = gripper.link_kinematics(q_new)
+            points_new, normals_new, offsets_new = pairs.evaluate(links_new)
+        else:
+            links_new, points_new, normals_new, offsets_new = links, points, normals, offsets
+        error_new = pairs.error(T_new, points_new, normals_new, alpha)
         if error_new > error:
-            iterations -= 1
             break
         decrease = error - error_new
-        T, q, kin, error = T_new, q_new, kin_new, error_new
+        T, q, error = T_new, q_new, error_new
+        links, points, normals, offsets = links_new, points_new, normals_new, offsets_new
         errors.append(error)
         if decrease <= threshold:
             break
-    return IPFOResult(T, q, error, iterations, tuple(errors))
-
+    return IPFOResult(T, q, error, len(errors), tuple(errors))

@@ -54,6 +54,11 @@ class Grasp:
         return self.fit.T_object_gripper
 
     @property
+    def q(self) -> np.ndarray:
+        """Joint vector, (n_joints,), metres or radians."""
+        return self.fit.q
+
+    @property
     def joints(self) -> dict[str, float]:
         """Joint values by name, metres or radians."""
         return self.fit.joints

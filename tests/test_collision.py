@@ -78,3 +78,117 @@ def pose(height: float, shift=(0.0, 0.0)) -> np.ndarray:
     T = np.diag([1.0, -1.0, -1.0, 1.0])
     T[:3, 3] = [shift[0], shift[1], height]
     return T
+
+
+GAP = 0.0005  # pad-to-face gap of a "touching" grasp, m
+
+
+@pytest.fixture(scope="module")
+def gripper() -> Gripper:
+    return jaw_gripper()
+
+
+@pytest.fixture(scope="module")
+def cube_mesh() -> trimesh.Trimesh:
+    return trimesh.creation.box(extents=(2 * CUBE,) * 3)
+
+
+@pytest.fixture(scope="module", params=["mesh", "cloud"])
+def cube(request, gripper, cube_mesh) -> CollisionChecker:
+    """A checker for the 4 cm cube, as a mesh and as a bare point cloud (no mesh)."""
+    return CollisionChecker(gripper, mesh_object(cube_mesh, keep_mesh=request.param == "mesh"))
+
+
+@pytest.fixture(scope="module", params=["mesh", "cloud"])
+def cube_on_table(request, gripper, cube_mesh) -> CollisionChecker:
+    obj = mesh_object(cube_mesh, keep_mesh=request.param == "mesh")
+    return CollisionChecker(gripper, obj, obstacles=[Plane.table(-CUBE)])
+
+
+# ------------------------------------------------------------------ analytic verdicts
+def test_palm_through_the_object_collides_at_the_analytic_depth(cube):
+    # palm bottom 5 mm below the cube's top face; pads 0.5 mm clear of the sides
+    report = cube.check(pose(CUBE - 0.005), [CUBE + GAP])
+    assert not report.collision_free
+    assert report.penetration == pytest.approx(0.005, abs=1e-3)
+    assert report.colliding_links == ("palm",)
+    assert report.obstacle == "object"
+    assert report.clearance == 0.0
+
+
+def test_fingers_through_the_object_collide_at_the_analytic_depth(cube):
+    # each pad face 5 mm inside a side face of the cube
+    report = cube.check(pose(0.03), [CUBE - 0.005])
+    assert not report.collision_free
+    assert report.penetration == pytest.approx(0.005, abs=1e-3)
+    assert report.colliding_links == ("left", "right")
+    assert report.obstacle == "object"
+
+
+@pytest.mark.parametrize("offset", [GAP, -GAP])
+def test_pads_just_touching_are_no_collision(cube, offset):
+    # pads 0.5 mm off (or into) the cube's sides; the finger bodies sit 2 mm behind the pads,
+    # the palm 10 mm above the cube: the non-contact geometry is PAD + offset away
+    report = cube.check(pose(0.03), [CUBE + offset])
+    assert report.collision_free, report
+    assert report.penetration == pytest.approx(max(0.0, -offset), abs=2e-4)
+    assert report.clearance == pytest.approx(PAD + offset, abs=2e-4)
+    assert report.colliding_links == () and report.obstacle is None
+
+
+def test_finger_below_the_table_is_rejected_with_the_analytic_depth(cube_on_table):
+    # palm 2 mm above the cube, finger tips 3 mm below the table the cube stands on
+    report = cube_on_table.check(pose(CUBE + 0.002), [CUBE + GAP])
+    assert not report.collision_free
+    assert report.obstacle == "table"
+    assert report.penetration == pytest.approx(LENGTH - 0.002 - 2 * CUBE, abs=1e-9)  # exact: vertices
+    assert report.colliding_links == ("left", "right")
+    assert report.clearance == 0.0
+
+
+def test_table_clearance_counts_the_contact_geometry_too(cube_on_table):
+    # tips 5 mm above the table; bodies 2.5 mm from the cube: clearance is the bodies'
+    report = cube_on_table.check(pose(0.03), [CUBE + GAP])
+    assert report.collision_free and report.clearance == pytest.approx(PAD + GAP, abs=2e-4)
+    # open the jaw: bodies 1.2 cm away, so the pad tips over the table (5 mm) decide
+    report = cube_on_table.check(pose(0.03), [CUBE + 0.01])
+    assert report.collision_free and report.clearance == pytest.approx(0.005, abs=1e-9)
+
+
+@pytest.mark.parametrize(("height", "shift", "q", "gap"), [
+    (0.05, (0.0, 0.0), 0.03, 0.012),  # jaw open around the cube: bodies 12 mm off its sides
+    (0.03, (0.0, 0.05), CUBE + GAP, float(np.hypot(0.02, PAD + GAP))),  # beside the cube, bodies nearest
+    (0.3, (0.0, 0.0), CUBE + GAP, float(np.hypot(0.3 - LENGTH - CUBE, PAD + GAP))),  # far above
+])
+def test_clearly_separated_grippers_report_the_analytic_gap(cube, height, shift, q, gap):
+    report = cube.check(pose(height, shift), [q])
+    assert report.collision_free and report.penetration == 0.0
+    tol = 2e-4 if gap < 0.02 else 1.5e-3  # beyond 2 cm clearance comes from coarse subsets
+    assert report.clearance == pytest.approx(gap, abs=tol)
+
+
+@pytest.mark.parametrize("keep_mesh", [True, False])
+def test_curved_object_depths_and_gaps(gripper, keep_mesh):
+    R = 0.02
+    sphere = mesh_object(trimesh.creation.icosphere(subdivisions=4, radius=R), 4000, keep_mesh=keep_mesh)
+    checker = CollisionChecker(gripper, sphere)
+    report = checker.check(pose(R - 0.004), [R + GAP])  # palm 4 mm into the sphere's top
+    assert not report.collision_free and report.colliding_links == ("palm",)
+    assert report.penetration == pytest.approx(0.004, abs=1e-3)
+    for offset in (GAP, -GAP):  # pads tangent to the sphere, 0.5 mm off or in
+        report = checker.check(pose(0.03), [R + offset])
+        assert report.collision_free
+        assert report.penetration == pytest.approx(max(0.0, -offset), abs=3e-4)
+        assert report.clearance == pytest.approx(PAD + offset, abs=3e-4)
+
+
+@pytest.mark.parametrize("keep_mesh", [True, False])
+def test_thin_feature_between_gripper_samples_is_found(gripper, keep_mesh):
+    # A 1 mm plate, 3 cm square, standing in the x-z plane: its top edge is 5 mm deep in the
+    # palm. Palm samples inside the plate can be at most 0.5 mm deep; the depth comes from the
+    # plate's own points inside the palm.
+    plate = trimesh.creation.box(extents=(0.03, 0.001, 0.03))
+    checker = CollisionChecker(gripper, mesh_object(plate, 3000, keep_mesh=keep_mesh))
+    report = checker.check(pose(0.015 - 0.005), [0.03])
+    assert not report.collision_free and report.colliding_links == ("palm",)
+    assert report.penetration == pytest.approx(0.005, abs=5e-4)

@@ -5,7 +5,9 @@ import pytest
 from scipy.optimize import lsq_linear
 
 from _builders import parallel_gripper, random_rotation
-from isf.finger_step import FingerStepQP, finger_rows
+from isf.finger_step import FingerStepQP
+from isf.ipfo import MatchedPairs
+from isf.se3 import make_transform
 
 
 def _pads(rng, n=40):
@@ -34,8 +36,9 @@ def test_one_dof_qp_equals_paper_closed_form(seed):
     normals = rng.normal(size=kin.points.shape)
     normals /= np.linalg.norm(normals, axis=1)[:, None]
 
-    A, b = finger_rows(R, kin.points @ R.T + t, kin.normals, kin.J_points, kin.J_rotation,
-                       targets, normals, normal_weight=0.01)
+    pairs = MatchedPairs(gripper, np.arange(gripper.n_points), targets, normals)
+    links = gripper.link_kinematics(q)
+    A, b = pairs.finger_rows(make_transform(R, t), *pairs.evaluate(links), links, normal_weight=0.01)
     qp = FingerStepQP(1, damping=0.0)
     dq = qp.solve(A, b, gripper.lower - q, gripper.upper - q)
 
@@ -59,3 +62,33 @@ def test_bounded_qp_matches_bvls_and_respects_bounds(n):
         ref = lsq_linear(A, b, bounds=(lower, upper), method="bvls", tol=1e-14).x
         assert np.all(dq >= lower) and np.all(dq <= upper)
         np.testing.assert_allclose(dq, ref, atol=1e-8)
+
+
+def test_finger_rows_are_the_derivative_of_the_residuals():
+    """For revolute fingers the rows (point-to-plane and normal) equal finite differences."""
+    import isf
+
+    gripper = isf.load_gripper("three-finger")
+    rng = np.random.default_rng(5)
+    q = rng.uniform(gripper.lower, gripper.upper)
+    T = make_transform(random_rotation(rng, 1.0), rng.normal(scale=0.05, size=3))
+    index = rng.choice(gripper.n_points, 60, replace=False)
+    targets = rng.normal(scale=0.05, size=(60, 3))
+    normals = rng.normal(size=(60, 3))
+    normals /= np.linalg.norm(normals, axis=1)[:, None]
+    pairs = MatchedPairs(gripper, index, targets, normals)
+    alpha = 0.01
+
+    def residuals(q):
+        points, normals_g, _ = pairs.evaluate(gripper.link_kinematics(q))
+        R, t = T[:3, :3], T[:3, 3]
+        d = np.einsum("kj,kj->k", points @ R.T + t - pairs.targets, pairs.target_normals)
+        c = np.einsum("kj,kj->k", normals_g @ R.T, pairs.target_normals) + 1.0
+        return np.r_[d, alpha * c]
+
+    links = gripper.link_kinematics(q)
+    A, b = pairs.finger_rows(T, *pairs.evaluate(links), links, normal_weight=alpha)
+    np.testing.assert_allclose(b, -residuals(q), atol=1e-15)
+    h = 1e-6
+    fd = np.stack([(residuals(q + h * e) - residuals(q - h * e)) / (2 * h) for e in np.eye(len(q))], axis=1)
+    np.testing.assert_allclose(A, fd, atol=1e-8)

@@ -1,0 +1,96 @@
+"""The command line end to end: exit codes, JSON schema, one-line errors, no partial output."""
+
+import json
+import subprocess
+import sys
+
+import jsonschema
+import pytest
+
+from isf.plan_json import SCHEMA_PATH
+
+
+def run(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "isf", *args], capture_output=True, text=True,
+                          cwd=cwd, timeout=300)
+
+
+@pytest.fixture(scope="module")
+def schema():
+    return json.loads(SCHEMA_PATH.read_text())
+
+
+def test_plan_writes_valid_json(tmp_path, schema):
+    out = tmp_path / "grasps.json"
+    proc = run("plan", "--gripper", "paper-parallel", "--object", "shape:cylinder", "--samples", "6",
+               "--seed", "1", "--top", "4", "--out", str(out))
+    assert proc.returncode == 0, proc.stderr
+    assert str(out) in proc.stdout and "collision-free" in proc.stdout
+    data = json.loads(out.read_text())
+    jsonschema.validate(data, schema)
+    assert data["units"] == "m" and data["gripper"] == "paper-parallel"
+    assert len(data["grasps"]) == 4 and data["stats"]["samples"] == 6
+    assert [g["rank"] for g in data["grasps"]] == [1, 2, 3, 4]
+    assert set(data["grasps"][0]["joints"]) == {"left_finger_joint"}
+
+
+def test_plan_with_table_and_units(tmp_path, schema):
+    mesh = tmp_path / "box_mm.stl"
+    import trimesh
+
+    trimesh.creation.box(extents=[50, 20, 15]).export(mesh)  # millimetres
+    out = tmp_path / "g.json"
+    proc = run("plan", "-g", "paper-parallel", "-o", str(mesh), "--units", "mm", "--table", "-0.0075",
+               "-n", "4", "--out", str(out), "--quiet")
+    assert proc.returncode in (0, 1), proc.stderr
+    jsonschema.validate(json.loads(out.read_text()), schema)
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--object", "missing.stl"], "missing.stl"),
+        (["--object", "garbage.stl"], "garbage.stl"),
+        (["--gripper", "no-such-gripper"], "no-such-gripper"),
+        (["--sampler", "no-such-sampler"], "no-such-sampler"),
+        (["--object", "shape:no-such-shape"], "no-such-shape"),
+        (["--object", "box_mm.stl"], "units"),
+    ],
+)
+def test_bad_input_is_one_line_exit_2_and_no_file(tmp_path, args, message):
+    (tmp_path / "garbage.stl").write_bytes(b"\x00\x01 definitely not a mesh \xff" * 10)
+    import trimesh
+
+    trimesh.creation.box(extents=[50, 20, 15]).export(tmp_path / "box_mm.stl")
+    base = {"--gripper": "paper-parallel", "--object": "shape:cylinder", "--sampler": "regret"}
+    base.update(dict(zip(args[::2], args[1::2])))
+    flat = [x for kv in base.items() for x in kv]
+    proc = run("plan", *flat, "-n", "2", "--out", "out.json", cwd=tmp_path)
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("isf: error:"), proc.stderr
+    assert message in lines[0]
+    assert "Traceback" not in proc.stderr
+    assert not (tmp_path / "out.json").exists()
+
+
+def test_listing_commands():
+    proc = run("grippers")
+    assert proc.returncode == 0
+    assert {"paper-parallel", "flat-parallel", "three-finger"} <= {l.split()[0] for l in proc.stdout.splitlines()}
+    proc = run("samplers")
+    assert proc.returncode == 0
+    assert {"regret", "uniform", "normal"} <= {l.split()[0] for l in proc.stdout.splitlines()}
+
+
+def test_inspect(tmp_path):
+    proc = run("inspect", "three-finger")
+    assert proc.returncode == 0, proc.stdout
+    for name in ("f0_pad", "f1_pad", "f2_pad", "f0_proximal_joint"):
+        assert name in proc.stdout
+    broken = tmp_path / "broken.urdf"
+    broken.write_text('<robot name="b" xmlns:isf="urn:isf:gripper:1"><link name="a"/>'
+                      '<isf:contact name="c" link="nowhere"/></robot>')
+    proc = run("inspect", str(broken))
+    assert proc.returncode == 1
+    assert "nowhere" in proc.stdout
