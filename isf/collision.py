@@ -252,22 +252,39 @@ class _SurfaceModel:
         k = min(self.neighbours, n)
         dist, idx = self.tree.query(query, k=k, distance_upper_bound=bound, workers=1)
         dist, idx = dist.reshape(m, k), idx.reshape(m, k)
-        idx = np.minimum(idx, n - 1)  # missing neighbours (dist inf) never become candidates
+        found = np.isfinite(dist)
+        idx = np.minimum(idx, n - 1)  # missing neighbours (dist inf) never take part
         q, nq = self.points[idx], self.normals[idx]  # (M, k, 3)
         h = np.einsum("mki,mki->mk", query[:, None, :] - q, nq)
-        r = self.disk * self.spacing
+        r, eps, rows = self.disk * self.spacing, self.edge * self.spacing, np.arange(m)
         cand = dist * dist - h * h <= r * r  # projects into the sample's disk
-        rows = np.arange(m)
         first = np.where(cand, np.abs(h), np.inf).argmin(axis=1)
         h0 = h[rows, first]
-        q0, n0 = q[rows, first], nq[rows, first]
-        # (q - q0) . n0 + (q0 - q) . n: how far each sample and the first lie below each other's plane
-        below = np.einsum("mki,mki->mk", q - q0[:, None, :], n0[:, None, :] - nq)
-        eps = self.edge * self.spacing
-        convex = np.isfinite(dist) & (below < -eps)
-        reading = np.maximum(h0, np.where(convex, h, -np.inf).max(axis=1))
-        reading = np.minimum(reading, np.where(cand & (below > eps), h, np.inf).min(axis=1))
-        return np.where(cand[rows, first], reading, dist[:, 0])
+        reading = np.maximum(h0, np.where(found & (self._below(q, nq, first) < -eps), h, -np.inf).max(axis=1))
+        reading = np.minimum(reading, np.where(cand & (self._below(q, nq, first) > eps), h, np.inf).min(axis=1))
+        # Outside a convex edge: the distance to the wedge of the two planes that face p most.
+        top = np.where(found, h, -np.inf).argmax(axis=1)
+        pair = found & (h > 0) & (self._below(q, nq, top) < -eps)
+        other = np.where(pair, h, -np.inf).argmax(axis=1)
+        ha, hb = h[rows, top], h[rows, other]
+        c = np.einsum("mi,mi->m", nq[rows, top], nq[rows, other])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            alpha, beta = (ha - c * hb) / (1 - c * c), (hb - c * ha) / (1 - c * c)
+            wedge = np.where((alpha >= 0) & (beta >= 0),
+                             np.sqrt(alpha * alpha + beta * beta + 2 * alpha * beta * c), np.maximum(ha, hb))
+        wedge = np.where(pair[rows, other] & (ha > 0), wedge, -np.inf)
+        near = dist[:, 0]  # the nearest sample: an upper bound outside
+        inside_disk = np.where(reading > 0, np.minimum(np.maximum(reading, wedge), near), reading)
+        beyond = np.minimum(near, np.maximum(wedge, near - self.spacing))
+        return np.where(cand[rows, first], inside_disk, beyond)
+
+    @staticmethod
+    def _below(q: np.ndarray, nq: np.ndarray, ref: np.ndarray) -> np.ndarray:
+        """``(q - q_ref) . n_ref + (q_ref - q) . n`` per neighbour (M, k): negative when each of
+        the pair lies below the other's tangent plane (a convex edge), positive when above."""
+        rows = np.arange(len(q))
+        q0, n0 = q[rows, ref][:, None, :], nq[rows, ref][:, None, :]
+        return np.einsum("mki,mki->mk", q - q0, n0 - nq)
 
 
 # ------------------------------------------------------------------ gripper elements

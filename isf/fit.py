@@ -65,15 +65,14 @@ def fit(
         index = np.flatnonzero(gripper.level_mask(level))
         max_iterations = max(1, config.max_iterations // 2**level)
         eps = 2**level * config.tolerance
-        start = _object_points(gripper, T, q, index)
+        start = current = _object_points(gripper, T, q, index)
         displacement, eta, iteration = np.inf, 0.0, 0
         while not (1.0 - eps <= eta <= 1.0 + eps) and iteration < max_iterations:
             iteration += 1
             previous = displacement
             pairs = match(
-                obj, _object_points(gripper, T, q, index),
-                outlier_factor=config.outlier_factor, outlier_floor=config.outlier_floor,
-                reject_duplicates=config.reject_duplicates,
+                obj, current, outlier_factor=config.outlier_factor,
+                outlier_floor=config.outlier_floor, reject_duplicates=config.reject_duplicates,
             )
             if len(pairs.source) < config.min_pairs:
                 status = FitStatus.LOST_CONTACT
@@ -82,11 +81,11 @@ def fit(
                                    obj.normals[pairs.target])
             step = ipfo(matched, T, q, qp, config)
             T, q = step.T_object_gripper, step.q
-            displacement = float(np.linalg.norm(_object_points(gripper, T, q, index) - start))
+            current = _object_points(gripper, T, q, index)
+            displacement = float(np.linalg.norm(current - start))
             eta = 1.0 if displacement <= 1e-12 else displacement / previous
             history.append(IterationRecord(
-                level=level, iteration=iteration,
-                mean_distance=_mean_plane_distance(matched, T, q),
+                level=level, iteration=iteration, mean_distance=step.mean_distance,
                 error=step.error, n_pairs=len(matched), q=q.copy(), ipfo_errors=step.errors,
             ))
         if status is FitStatus.LOST_CONTACT:
@@ -137,12 +136,6 @@ def _object_points(gripper: Gripper, T: np.ndarray, q: np.ndarray, index: np.nda
     """Contact points ``index`` at ``(T, q)`` in the object frame, (len(index), 3)."""
     points = gripper.contact_points(q, index)[0]
     return points @ T[:3, :3].T + T[:3, 3]
-
-
-def _mean_plane_distance(pairs: MatchedPairs, T: np.ndarray, q: np.ndarray) -> float:
-    """Mean |point-to-plane distance| of the pairs at ``(T, q)``, metres."""
-    points = pairs.evaluate(pairs.gripper.link_kinematics(q))[0] @ T[:3, :3].T + T[:3, 3]
-    return float(np.mean(np.abs(np.einsum("kj,kj->k", points - pairs.targets, pairs.target_normals))))
 
 
 def _final_result(gripper, obj, T, q, config, status, history, started) -> FitResult:

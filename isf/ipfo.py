@@ -22,6 +22,7 @@ class IPFOResult(NamedTuple):
         T_object_gripper: palm pose, (4, 4).
         q: joint vector, (n_joints,).
         error: total fitting error E at the result, m^2 (eq. 9a).
+        mean_distance: mean |point-to-plane distance| of the pairs at the result, metres.
         iterations: palm/finger alternations kept.
         errors: E after each kept alternation (the paper's Fig. 5b), m^2.
     """
@@ -29,6 +30,7 @@ class IPFOResult(NamedTuple):
     T_object_gripper: np.ndarray
     q: np.ndarray
     error: float
+    mean_distance: float
     iterations: int
     errors: tuple[float, ...]
 
@@ -75,11 +77,16 @@ class MatchedPairs:
             points[s] = offsets[s] + links.positions[k]
         return points, normals, offsets
 
-    def error(self, T: np.ndarray, points: np.ndarray, normals: np.ndarray, normal_weight: float) -> float:
-        """``E = E_p + alpha^2 E_n`` (eq. 7-9) at palm pose ``T`` for gripper-frame points/normals, m^2."""
+    def residuals(self, T: np.ndarray, points: np.ndarray, normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Point-to-plane distances (K,) in metres and normal terms ``(R n^p)^T n^q + 1`` (K,) at palm pose ``T``."""
         R, t = T[:3, :3], T[:3, 3]
         d = np.einsum("kj,kj->k", points @ R.T + t - self.targets, self.target_normals)
         c = np.einsum("kj,kj->k", normals @ R.T, self.target_normals) + 1.0
+        return d, c
+
+    def error(self, T: np.ndarray, points: np.ndarray, normals: np.ndarray, normal_weight: float) -> float:
+        """``E = E_p + alpha^2 E_n`` (eq. 7-9) at palm pose ``T`` for gripper-frame points/normals, m^2."""
+        d, c = self.residuals(T, points, normals)
         return float(d @ d + normal_weight**2 * (c @ c))
 
     def finger_rows(self, T, points, normals, offsets, links: LinkKinematics, normal_weight: float):
@@ -157,4 +164,5 @@ def ipfo(pairs: MatchedPairs, T: np.ndarray, q: np.ndarray, qp: FingerStepQP | N
         errors.append(error)
         if decrease <= threshold:
             break
-    return IPFOResult(T, q, error, len(errors), tuple(errors))
+    mean_distance = float(np.mean(np.abs(pairs.residuals(T, points, normals)[0])))
+    return IPFOResult(T, q, error, mean_distance, len(errors), tuple(errors))

@@ -1,0 +1,186 @@
+"""How planning time grows with the object's size and with the number of samples.
+
+Paper gripper (``paper-parallel``), the Stanford bunny scaled uniformly to a 25 mm middle
+bounding-box extent (as bench/table1.py does), ``isf.plan(..., sampler="regret")``:
+
+* vs object size: 60 samples on the bunny sampled to about 1k, 2k, 10k, 50k and 200k surface
+  points (voxel size searched so the count is within 10 %);
+* vs samples: 15, 30, 60, 120 and 240 samples on the 2k-point bunny.
+
+``t_total`` is ``PlanStats.total_time``: the planner's wall time of Algorithm 3 including its
+set-up (sampler k-means, collision checker); loading the object (and building its KD-tree) is
+outside it and listed separately. Medians over ``--repeats`` runs with seeds 0, 1, ...; a
+configuration stops repeating once its runs took ``--budget`` seconds (at least one run), and the
+tables show how many runs each median has. The growth ratio is t_total(200k) / t_total(2k).
+
+Run from the repository root:  python bench/bench_scaling.py [--quick] [--repeats 3] [--budget 20]
+"""
+
+from __future__ import annotations
+
+import _common  # noqa: I001  (first: pins BLAS/OpenMP threads before numpy is imported)
+
+import time  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+import isf  # noqa: E402
+from isf import assets  # noqa: E402
+
+GRIPPER = "paper-parallel"
+OBJECT = "bunny"
+SIZES = (1_000, 2_000, 10_000, 50_000, 200_000)
+SAMPLES = (15, 30, 60, 120, 240)
+BASE_SIZE, BASE_SAMPLES = 2_000, 60
+QUICK_SIZES, QUICK_SAMPLES = (2_000, 200_000), (15, 60)
+
+
+class Objects:
+    """The scaled bunny at each requested size, loaded on first use, with its load time (s)."""
+
+    def __init__(self):
+        _, self.scale = _common.scaled_benchmark_object(OBJECT, max_points=BASE_SIZE)
+        self.path = assets.benchmark_object(OBJECT).path
+        self.loaded: dict[int, tuple[isf.ObjectSurface, float]] = {}
+
+    def get(self, n: int) -> tuple[isf.ObjectSurface, float]:
+        if n not in self.loaded:
+            t0 = time.perf_counter()
+            found = _common.object_with_points(self.path, self.scale, n, OBJECT)
+            search = time.perf_counter() - t0
+            # the voxel search loads several times; time one load at the final voxel size
+            t0 = time.perf_counter()
+            obj = isf.load_object(self.path, scale=self.scale, voxel_size=found.spacing,
+                                  name=found.name)
+            self.loaded[n] = (obj, time.perf_counter() - t0)
+            print(f"# {OBJECT} at {obj.n_points} points (voxel search {search:.1f} s)",
+                  flush=True)
+        return self.loaded[n]
+
+
+def plan_once(gripper, obj, samples: int, seed: int) -> dict:
+    cpu = time.process_time()
+    result = isf.plan(gripper, obj, samples=samples, sampler="regret", seed=seed)
+    cpu = time.process_time() - cpu
+    s = result.stats
+    free = result.collision_free_grasps()
+    return {"t_total": s.total_time, "cpu": cpu, "setup": s.setup_time, "fit": s.fit_time,
+            "collision": s.collision_time, "free": s.collision_free,
+            "per_free": s.total_time / s.collision_free if s.collision_free else np.inf,
+            "error": float(np.mean([g.fit.mean_distance for g in free])) if free else np.nan}
+
+
+def measure(gripper, obj, samples: int, args) -> dict:
+    runs, failed = _common.run_repeats(lambda seed: plan_once(gripper, obj, samples, seed),
+                                       args.repeats, _common.budget_or_none(args),
+                                       catch=(isf.ISFError,))
+    row = _common.median_row(runs, failed, args.repeats)
+    print(f"#   {obj.n_points} points, {samples} samples: t_total {_common.timing_cell(row)} s",
+          flush=True)
+    return row
+
+
+def plan_order(sizes, sample_counts) -> list[tuple[int, int]]:
+    """(points, samples) configurations, most important first: the 2k/60 baseline, the largest
+    object (for the growth ratio), then the other sizes, then the other sample counts."""
+    order = [(BASE_SIZE, BASE_SAMPLES), (max(sizes), BASE_SAMPLES)]
+    order += [(n, BASE_SAMPLES) for n in sizes] + [(BASE_SIZE, k) for k in sample_counts]
+    return list(dict.fromkeys(order))
+
+
+SKIPPED = "skipped (deadline)"
+
+
+def size_table(rows: list[tuple[int, float, dict]]) -> str:
+    body = [[n, _common.fmt(load), SKIPPED if r is None else _common.timing_cell(r)] + ["-"] * 7
+            if r is None or "timing" not in r else [
+        n, _common.fmt(load), _common.timing_cell(r), _common.fmt(r["cpu"]), f"{r['setup']:.3f}",
+        f"{r['fit']:.3f}", f"{r['collision']:.3f}", f"{r['free']:g}/{BASE_SAMPLES}",
+        _common.fmt(r["per_free"] * 1e3), _common.fmt(r["error"] * 1e3),
+    ] for n, load, r in rows]
+    body.append([f"{_common.PAPER['vertices']:.0f} (paper average, Matlab)", "-",
+                 f"{_common.PAPER['t_total_60']}", "-", "-", "-", "-",
+                 f"{_common.PAPER['free_of_60']}/60", f"{_common.PAPER['ms_per_free']}", "-"])
+    return _common.markdown_table(
+        ["object points", "load_object (s, not in t_total)", "t_total (s), median (min-max)",
+         "CPU time (s)", "set-up (s)", "ISF (s)", "collision (s)", "collision-free",
+         "ms per collision-free", "mean fit error of collision-free (mm)"], body)
+
+
+def samples_table(rows: list[tuple[int, dict]]) -> str:
+    body = [[k, SKIPPED if r is None else _common.timing_cell(r)] + ["-"] * 5
+            if r is None or "timing" not in r else [
+        k, _common.timing_cell(r), _common.fmt(r["cpu"]), _common.fmt(r["t_total"] / k * 1e3),
+        f"{r['free']:g}/{k}", _common.fmt(r["per_free"] * 1e3), f"{r['setup']:.3f}",
+    ] for k, r in rows]
+    body.append([60, f"{_common.PAPER['t_total_60']} (paper average, Matlab)", "-",
+                 _common.fmt(_common.PAPER["t_total_60"] / 60 * 1e3),
+                 f"{_common.PAPER['free_of_60']}/60", _common.PAPER["ms_per_free"], "-"])
+    return _common.markdown_table(
+        ["samples", "t_total (s), median (min-max)", "CPU time (s)", "ms per sample",
+         "collision-free", "ms per collision-free", "set-up (s)"], body)
+
+
+def targets(results: dict, sizes, base_n: int, largest_n: int) -> str:
+    t, paper = _common.TARGETS, _common.PAPER
+    ok = {key: row for key, row in results.items() if "timing" in row}
+    base = ok.get((BASE_SIZE, BASE_SAMPLES))
+    large = ok.get((max(sizes), BASE_SAMPLES))
+    rows = []
+    if base is not None:
+        rows += [[f"t_total, 60 samples, {base_n} points (s)", f"{base['t_total']:.3f}",
+                  paper["t_total_60"], f"<= {t['t_total_60_paper_s']}",
+                  _common.verdict(base["t_total"], t["t_total_60_paper_s"])],
+                 ["ms per collision-free grasp (same runs)", _common.fmt(base["per_free"] * 1e3),
+                  paper["ms_per_free"], f"<= {t['ms_per_free_paper']:g}",
+                  _common.verdict(base["per_free"] * 1e3, t["ms_per_free_paper"])]]
+    if base is not None and large is not None and largest_n != base_n:
+        growth = large["t_total"] / base["t_total"]
+        rows.append([f"growth t_total({largest_n} pts) / t_total({base_n} pts), 60 samples",
+                     f"{growth:.2f}", "-", f"<= {t['growth_200k_2k']}",
+                     _common.verdict(growth, t["growth_200k_2k"])])
+    return _common.markdown_table(["measure", "isf", "paper (Matlab)", "target", "met?"], rows)
+
+
+def main() -> None:
+    parser = _common.base_parser(__doc__.splitlines()[0], repeats=3, budget=20.0)
+    args = parser.parse_args()
+    sizes, sample_counts = (QUICK_SIZES, QUICK_SAMPLES) if args.quick else (SIZES, SAMPLES)
+    if args.quick:
+        args.repeats = min(args.repeats, 1)
+    started = time.perf_counter()
+    header = _common.machine_description()
+    deadline = _common.Deadline(args.deadline)
+    gripper = isf.load_gripper(GRIPPER)
+    objects = Objects()
+    results: dict[tuple[int, int], dict] = {}
+    for n, k in plan_order(sizes, sample_counts):
+        if deadline.allows(f"{n} points x {k} samples"):
+            results[(n, k)] = measure(gripper, objects.get(n)[0], k, args)
+
+    def loaded(n: int) -> tuple[int, float]:
+        if n in objects.loaded:
+            obj, load = objects.loaded[n]
+            return obj.n_points, load
+        return n, float("nan")
+
+    by_size = [(*loaded(n), results.get((n, BASE_SAMPLES))) for n in sizes]
+    by_samples = [(k, results.get((BASE_SIZE, k))) for k in sample_counts]
+    base_n, largest_n = loaded(BASE_SIZE)[0], loaded(max(sizes))[0]
+    note = (f"Gripper `{GRIPPER}`, object: {OBJECT} scaled to a "
+            f"{_common.PAPER_GRIPPER_MIDDLE_EXTENT * 1e3:g} mm middle extent, regret sampler, "
+            f"seeds 0..n-1, up to {args.repeats} runs per configuration (budget "
+            f"{args.budget:g} s). CPU time: process time around `isf.plan` (wall time minus "
+            "waiting for a core on a shared machine).")
+    sections = ["### Planning time vs. object size and samples", note,
+                f"**vs. object size** ({BASE_SAMPLES} samples):", size_table(by_size),
+                f"**vs. samples** ({base_n} points):", samples_table(by_samples),
+                "**Targets:**", targets(results, sizes, base_n, largest_n), *deadline.note(),
+                *_common.failure_notes([(f"{n} points x {k} samples", row)
+                                        for (n, k), row in results.items()])]
+    _common.finish("bench_scaling: planning time vs. object size and samples", sections,
+                   started, header, args.out)
+
+
+if __name__ == "__main__":
+    main()
