@@ -275,7 +275,7 @@ class _SurfaceModel:
         wedge = np.where(pair[rows, other] & (ha > 0), wedge, -np.inf)
         near = dist[:, 0]  # the nearest sample: an upper bound outside
         inside_disk = np.where(reading > 0, np.minimum(np.maximum(reading, wedge), near), reading)
-        beyond = np.minimum(near, np.maximum(wedge, near - self.spacing))
+        beyond = np.minimum(near, np.maximum(np.maximum(wedge, ha), near - self.spacing))
         return np.where(cand[rows, first], inside_disk, beyond)
 
     @staticmethod
@@ -644,15 +644,20 @@ class CollisionChecker:
             lower[read] = self._surface.signed_distance(posed[read], bound=best + self._reach)
             best = min(best, float(lower[read].min()))
         done[ids] = True
-        # 3. Read every point of the cells that may still hold something closer.
-        refine = cells[(lower - slack < best) & (lower <= _FAR)]
-        if len(refine):
-            ids = np.concatenate([self._cell_order[self._cell_start[c]:self._cell_start[c + 1]]
-                                  for c in refine])
-            ids = ids[~done[ids]]
+        # 3. Read every point of the cells that may still hold something closer: near cells on
+        #    the full object samples, far ones (beyond _FAR) on the coarse object subset.
+        near_cells = (lower - slack < best) & (lower <= _FAR)
+        if near_cells.any():
+            ids = self._members(cells[near_cells], done)
             if len(ids):
                 reading = self._surface.signed_distance(self._posed(ids, R, t), bound=best + self._reach)
                 best = min(best, float(reading.min()))
+        far_cells = (far - self._radius[self._coarse_owner[cells]] < best) & (lower > _FAR)
+        if far_cells.any():
+            ids = self._members(cells[far_cells], done)
+            if len(ids):
+                d, _ = self._coarse_tree.query(self._posed(ids, R, t), distance_upper_bound=best, workers=1)
+                best = min(best, float(d.min()))
         # 4. Object features facing a flat side of a convex element (its samples are sparse there).
         for k in cand[np.argsort(box_distance[cand])]:
             reach = min(best, _FAR)
@@ -665,6 +670,11 @@ class CollisionChecker:
             if len(pts):
                 best = min(best, float(e.face_distance((pts - t[e.frame]) @ R[e.frame]).min()))
         return best
+
+    def _members(self, cells: np.ndarray, done: np.ndarray) -> np.ndarray:
+        """Stacked point ids of the coarse ``cells`` not yet read."""
+        ids = np.concatenate([self._cell_order[self._cell_start[c]:self._cell_start[c + 1]] for c in cells])
+        return ids[~done[ids]]
 
     def _report(self, depth: np.ndarray, where: np.ndarray, clearance: float) -> CollisionReport:
         colliding = depth > self.tolerance
