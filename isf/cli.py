@@ -1,7 +1,7 @@
-"""The ``isf`` command line: ``plan``, ``grippers``, ``samplers``, ``inspect``.
+"""The ``isf`` command line: ``plan``, ``grippers``, ``samplers``, ``tag``, ``inspect``.
 
-Exit codes: 0 success, 1 a gripper with problems (``inspect``) or a plan that
-found no collision-free grasp, 2 a usage or input error (one line on stderr,
+Exit codes: 0 success, 1 a gripper with problems (``inspect``, ``tag``) or a
+plan that found no collision-free grasp, 2 a usage or input error (one line on stderr,
 no traceback, no output file written).
 """
 
@@ -52,6 +52,31 @@ def _parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("samplers", help="list the installed samplers")
     p.set_defaults(run=_cmd_samplers)
+
+    p = sub.add_parser("tag", help="write a tagged copy of a stock URDF (gripper registration)", description=(
+        "Write a copy of URDF with <isf:contact> tags added (the vendor file is only read), "
+        "validate it and show what every tag selected. Without --contact, one contact "
+        "surface per fingertip is suggested, facing the other fingertips."))
+    p.add_argument("urdf", help="the stock URDF")
+    p.add_argument("--out", "-o", required=True, help="the tagged copy to write")
+    p.add_argument("--contact", action="append", default=None, metavar="SPEC",
+                   help="a contact surface as key=value words, e.g. "
+                        "'name=left link=left_finger normal=0,-1,0 max_angle=0.3' (repeatable)")
+    p.add_argument("--links", default=None, help="comma-separated fingertip links for the suggestion")
+    p.add_argument("--points", type=int, default=256, help="points per suggested surface (default 256)")
+    p.add_argument("--tip-fraction", type=float, default=0.5,
+                   help="fraction of a suggested pad kept, from the fingertip (default 0.5; 1 = whole pad)")
+    p.add_argument("--palm-link", default=None, help="the link that approaches the object (default: root)")
+    p.add_argument("--approach", default="auto",
+                   help="approach direction in the palm frame: auto (default), none, or X,Y,Z")
+    p.add_argument("--initial", action="append", default=[], metavar="JOINT=VALUE",
+                   help="initial value of an actuated joint (repeatable)")
+    p.add_argument("--package", action="append", default=[], metavar="PKG=DIR",
+                   help="folder of a package:// package (repeatable)")
+    p.add_argument("--replace", action="store_true", help="replace isf tags the source already has")
+    p.add_argument("--export", default=None, metavar="FILE",
+                   help="also write the gripper with the selected faces in red (PLY/GLB/OBJ)")
+    p.set_defaults(run=_cmd_tag)
 
     p = sub.add_parser("inspect", help="show a gripper's joints, limits, contact surfaces and problems")
     p.add_argument("gripper", help="bundled gripper name or URDF path")
@@ -126,6 +151,53 @@ def _cmd_samplers(args: argparse.Namespace) -> int:
         description = getattr(info, "description", "") or ""
         print(f"{name:<10} {info.source:<28} {description}")
     return EXIT_OK
+
+
+def _pairs(words: list[str], what: str) -> dict[str, str]:
+    from .exceptions import InvalidInputError
+
+    out = {}
+    for word in words:
+        key, eq, value = word.partition("=")
+        if not eq or not key:
+            raise InvalidInputError(f"{what} {word!r} must look like NAME=VALUE")
+        out[key] = value
+    return out
+
+
+def _cmd_tag(args: argparse.Namespace) -> int:
+    from .exceptions import InvalidInputError
+    from .registration import ContactSpec, suggest_approach, suggest_contacts, tag_urdf
+
+    package_dirs = _pairs(args.package, "--package") or None
+    try:
+        initial = {k: float(v) for k, v in _pairs(args.initial, "--initial").items()} or None
+    except ValueError:
+        raise InvalidInputError("--initial values must be numbers (metres or radians)") from None
+    links = args.links.split(",") if args.links else None
+    if args.contact:
+        contacts = [ContactSpec.parse(text) for text in args.contact]
+    else:
+        contacts = suggest_contacts(args.urdf, links=links, initial=initial, package_dirs=package_dirs,
+                                    points=args.points, tip_fraction=args.tip_fraction)
+    if args.approach == "auto":
+        approach = suggest_approach(args.urdf, palm_link=args.palm_link, links=links, initial=initial,
+                                    package_dirs=package_dirs)
+    elif args.approach == "none":
+        approach = None
+    else:
+        try:
+            approach = [float(v) for v in args.approach.split(",")]
+        except ValueError:
+            approach = []
+        if len(approach) != 3:
+            raise InvalidInputError(f"--approach {args.approach!r} must be auto, none or X,Y,Z")
+    preview = tag_urdf(args.urdf, args.out, contacts, palm_link=args.palm_link, approach=approach,
+                       initial=initial, package_dirs=package_dirs, replace_tags=args.replace)
+    print(preview.format())
+    if args.export:
+        print(f"selected faces shown in {preview.export(args.export)}")
+    return EXIT_OK if preview.ok else EXIT_NOTHING_FOUND
 
 
 def _cmd_inspect(args: argparse.Namespace) -> int:

@@ -72,7 +72,10 @@ _COARSE_PER_ELEMENT = 24  # coarse gripper points per element, for clearance bou
 _OBJECT_MIN_SPACING = 0.5e-3  # finest resampling of a mesh object, m
 _OBJECT_MAX_SAMPLES = 60_000
 _OBJECT_COARSE_SPACING = 5e-3  # coarse object subset, for clearance bounds, m
-_FAR = 0.02  # beyond this distance clearance uses the coarse subsets only, m
+_NEAR = 0.02  # clearance within this is read on the full object samples, m
+_FAR = 0.02  # clearance beyond this comes from the coarse subsets only, m
+_OBJECT_MAX_FEATURES = 5000  # mesh vertices (if no more) and sharp-edge points of the object
+_DEEP = 0.01  # gripper points farther than this from the object surface are read on the coarse subset, m
 _ON_SURFACE = 1e-6  # a contact point this close to an element lies on it, m
 _EYE = np.eye(3)
 _LAST_ROW = np.array([0.0, 0.0, 0.0, 1.0])
@@ -259,24 +262,24 @@ class _SurfaceModel:
         r, eps, rows = self.disk * self.spacing, self.edge * self.spacing, np.arange(m)
         cand = dist * dist - h * h <= r * r  # projects into the sample's disk
         first = np.where(cand, np.abs(h), np.inf).argmin(axis=1)
-        h0 = h[rows, first]
-        reading = np.maximum(h0, np.where(found & (self._below(q, nq, first) < -eps), h, -np.inf).max(axis=1))
-        reading = np.minimum(reading, np.where(cand & (self._below(q, nq, first) > eps), h, np.inf).min(axis=1))
+        below = self._below(q, nq, first)
+        reading = np.maximum(h[rows, first], np.where(found & (below < -eps), h, -np.inf).max(axis=1))
+        reading = np.minimum(reading, np.where(cand & (below > eps), h, np.inf).min(axis=1))
         # Outside a convex edge: the distance to the wedge of the two planes that face p most.
         top = np.where(found, h, -np.inf).argmax(axis=1)
         pair = found & (h > 0) & (self._below(q, nq, top) < -eps)
         other = np.where(pair, h, -np.inf).argmax(axis=1)
         ha, hb = h[rows, top], h[rows, other]
         c = np.einsum("mi,mi->m", nq[rows, top], nq[rows, other])
-        with np.errstate(divide="ignore", invalid="ignore"):
-            alpha, beta = (ha - c * hb) / (1 - c * c), (hb - c * ha) / (1 - c * c)
-            wedge = np.where((alpha >= 0) & (beta >= 0),
-                             np.sqrt(alpha * alpha + beta * beta + 2 * alpha * beta * c), np.maximum(ha, hb))
+        with np.errstate(divide="ignore", invalid="ignore"):  # parallel planes: c = 1
+            a, b = (ha - c * hb) / (1 - c * c), (hb - c * ha) / (1 - c * c)
+            wedge = np.where((a >= 0) & (b >= 0), np.sqrt(a * a + b * b + 2 * a * b * c),
+                             np.maximum(ha, hb))
         wedge = np.where(pair[rows, other] & (ha > 0), wedge, -np.inf)
-        near = dist[:, 0]  # the nearest sample: an upper bound outside
-        inside_disk = np.where(reading > 0, np.minimum(np.maximum(reading, wedge), near), reading)
+        near = dist[:, 0]  # distance to the nearest sample: an upper bound outside
+        over = np.where(reading > 0, np.minimum(np.maximum(reading, wedge), near), reading)
         beyond = np.minimum(near, np.maximum(np.maximum(wedge, ha), near - self.spacing))
-        return np.where(cand[rows, first], inside_disk, beyond)
+        return np.where(cand[rows, first], over, beyond)
 
     @staticmethod
     def _below(q: np.ndarray, nq: np.ndarray, ref: np.ndarray) -> np.ndarray:
@@ -385,15 +388,15 @@ def _lies_on(mesh: trimesh.Trimesh, points: np.ndarray) -> bool:
 # ------------------------------------------------------------------ the object
 def _object_model(obj: ObjectSurface, tolerance: float,
                   rng: np.random.Generator) -> tuple[_SurfaceModel, np.ndarray]:
-    """The object's signed-distance model and its probe points (M, 3).
+    """The object's signed-distance model and its feature points (M, 3).
 
     The model uses dense samples of a closed, outward-wound mesh, else the object's own
-    points. Probe points (searched inside gripper elements) add a mesh's vertices and points
-    along its sharp edges.
+    points. Feature points are a mesh's vertices and points along its sharp edges (none for a
+    point cloud).
     """
     given = _SurfaceModel(obj.points, obj.normals, obj.spacing)
     if obj.mesh_vertices is None or obj.mesh_faces is None:
-        return given, given.points
+        return given, np.empty((0, 3))
     vertices = np.asarray(obj.mesh_vertices, dtype=float)
     faces = np.asarray(obj.mesh_faces, dtype=np.int64)
     mesh = trimesh.Trimesh(vertices, faces, process=False, validate=False)
@@ -413,8 +416,23 @@ def _object_model(obj: ObjectSurface, tolerance: float,
                            "collision checks use the object's points", obj.name, 100 * agree)
     else:
         logger.debug("%s: mesh is not closed and outward; using its %d points", obj.name, obj.n_points)
-    edges = _edge_samples(mesh, model.spacing, _OBJECT_MAX_SAMPLES // 4)
-    return model, np.concatenate([model.points, edges, vertices])
+    features = np.concatenate([_edge_samples(mesh, max(model.spacing, _EDGE_SPACING), _OBJECT_MAX_FEATURES),
+                               vertices if len(vertices) <= _OBJECT_MAX_FEATURES else np.empty((0, 3))])
+    return model, features
+
+
+class _BoxIndex:
+    """Points sorted along x, for the points inside an axis-aligned box."""
+
+    def __init__(self, points: np.ndarray):
+        self.points = points[np.argsort(points[:, 0])]
+        self.x = np.ascontiguousarray(self.points[:, 0])
+
+    def inside(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+        """The points in the box [lo, hi], (M, 3)."""
+        a, b = np.searchsorted(self.x, (lo[0], hi[0]))
+        pts = self.points[a:b]
+        return pts[np.all((pts >= lo) & (pts <= hi), axis=1)]
 
 
 def _segment_min(values: np.ndarray, owner: np.ndarray, n: int) -> np.ndarray:
@@ -469,18 +487,22 @@ class CollisionChecker:
         self._plane_normals = np.array([p.normal for p in self.obstacles]).reshape(-1, 3)
         self._plane_offsets = np.array([p.offset for p in self.obstacles])
 
-        self._surface, probe = _object_model(obj, self.tolerance, rng)
+        self._surface, features = _object_model(obj, self.tolerance, rng)
         pts = self._surface.points
-        self._lo, self._hi = probe.min(axis=0), probe.max(axis=0)
-        self._probe = probe[np.argsort(probe[:, 0])]  # sorted by x, for box queries
-        self._probe_x = np.ascontiguousarray(self._probe[:, 0])
-        coarse = _voxel_thin(pts, max(_OBJECT_COARSE_SPACING, 2 * self._surface.spacing))
-        self._coarse_tree = cKDTree(pts[coarse])
+        coarse_spacing = max(_OBJECT_COARSE_SPACING, 2 * self._surface.spacing)
+        coarse = _voxel_thin(pts, coarse_spacing)
+        self._coarse_surface = _SurfaceModel(pts[coarse], self._surface.normals[coarse], coarse_spacing)
+        self._coarse_tree = self._coarse_surface.tree
         dist, _ = self._coarse_tree.query(pts, workers=1)
         self._coarse_radius = float(dist.max())
+        # Object points searched inside gripper elements (all), and facing their sides (sparse).
+        self._probe = _BoxIndex(np.concatenate([pts, features]))
+        self._features = _BoxIndex(np.concatenate([pts[coarse], features]))
+        self._lo, self._hi = self._probe.points.min(axis=0), self._probe.points.max(axis=0)
         # Readings beyond ``best`` are not needed, but the edge rule needs the samples of the
         # other face, which can lie a few disk radii farther than the nearest one.
         self._reach = 3.0 * _SurfaceModel.disk * self._surface.spacing
+        self._coarse_reach = 3.0 * _SurfaceModel.disk * coarse_spacing
 
     def _build_gripper(self, gripper: Gripper, rng: np.random.Generator) -> None:
         links = list(dict.fromkeys(g.link for g in gripper.geometries))
@@ -596,7 +618,10 @@ class CollisionChecker:
         inside = np.all((posed >= self._lo) & (posed <= self._hi), axis=1)
         ids, posed = ids[inside], posed[inside]
         done[ids] = True
-        reading = self._surface.signed_distance(posed)
+        reading = self._surface.signed_distance(posed, bound=_DEEP)
+        deep = ~np.isfinite(reading)  # no sample within _DEEP: read on the coarse subset
+        if deep.any():
+            reading[deep] = self._coarse_surface.signed_distance(posed[deep])
         lowest = _segment_min(reading, self._owner[ids], len(self._elements))
         for k in near:
             e = self._elements[k]
@@ -609,72 +634,75 @@ class CollisionChecker:
                 best = min(best, lowest[k])
         return best
 
-    def _probe_in_box(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-        """Object probe points inside the box [lo, hi] (object frame), (M, 3)."""
-        a, b = np.searchsorted(self._probe_x, (lo[0], hi[0]))
-        pts = self._probe[a:b]
-        return pts[np.all((pts >= lo) & (pts <= hi), axis=1)]
-
     def _object_inside(self, e: _Element, R: np.ndarray, t: np.ndarray, lo: np.ndarray,
                        hi: np.ndarray) -> float:
         """Deepest object probe point inside element ``e`` (posed by R, t), metres."""
-        pts = self._probe_in_box(lo, hi)
+        pts = self._probe.inside(lo, hi)
         return e.depth_of((pts - t) @ R) if len(pts) else 0.0
 
     def _clearance(self, box_distance, R, t, lo, hi, done, best: float) -> float:
-        """Smallest distance of a non-contact element to the object, bounded coarse-to-fine; at most ``best``."""
-        spacing = self._surface.spacing
-        cand = np.flatnonzero(~self._contact & (box_distance - spacing < best))
+        """Smallest distance of a non-contact element to the object, at most ``best``.
+
+        Coarse to fine: each element's coarse points against the coarse object subset first;
+        only the cells that may hold something closer than the best so far are read point by
+        point, within ``_NEAR`` on the full object samples, within ``_FAR`` on the coarse ones.
+        """
+        cand = np.flatnonzero(~self._contact & (box_distance - self._surface.spacing < best))
         if not len(cand):
             return best
-        # 1. Coarse gripper points against the coarse object subset (an upper bound).
         mask = np.zeros(len(self._elements), dtype=bool)
         mask[cand] = True
         cells = np.flatnonzero(mask[self._coarse_owner])
         ids = self._coarse[cells]
         posed = self._posed(ids, R, t)
-        far, _ = self._coarse_tree.query(posed, workers=1)
+        far, _ = self._coarse_tree.query(posed, workers=1)  # distance to a coarse sample
         best = min(best, float(far.min()))
-        # 2. Read the coarse points that may be within reach on the full object samples.
-        slack = self._radius[self._coarse_owner[cells]] + spacing
-        bound = far - self._coarse_radius  # lower bound of each coarse point's distance
-        read = (bound - slack < best) & (bound <= _FAR) & ~done[ids]
-        lower = bound.copy()
+        if best > _FAR:
+            return best
+        radius = self._radius[self._coarse_owner[cells]]
+        lower = far - self._coarse_radius  # lower bound of each coarse point's distance
+        read = (lower - radius < best) & ~done[ids]
         if read.any():
-            lower[read] = self._surface.signed_distance(posed[read], bound=best + self._reach)
+            lower[read] = self._read(posed[read], lower[read], best)
             best = min(best, float(lower[read].min()))
         done[ids] = True
-        # 3. Read every point of the cells that may still hold something closer: near cells on
-        #    the full object samples, far ones (beyond _FAR) on the coarse object subset.
-        near_cells = (lower - slack < best) & (lower <= _FAR)
-        if near_cells.any():
-            ids = self._members(cells[near_cells], done)
+        refine = np.flatnonzero(lower - radius - self._surface.spacing < best)
+        if len(refine):
+            ids, which = self._members(cells[refine], done)
             if len(ids):
-                reading = self._surface.signed_distance(self._posed(ids, R, t), bound=best + self._reach)
-                best = min(best, float(reading.min()))
-        far_cells = (far - self._radius[self._coarse_owner[cells]] < best) & (lower > _FAR)
-        if far_cells.any():
-            ids = self._members(cells[far_cells], done)
-            if len(ids):
-                d, _ = self._coarse_tree.query(self._posed(ids, R, t), distance_upper_bound=best, workers=1)
-                best = min(best, float(d.min()))
-        # 4. Object features facing a flat side of a convex element (its samples are sparse there).
+                estimate = lower[refine][which]
+                best = min(best, float(self._read(self._posed(ids, R, t), estimate, best).min()))
+        reach = min(best, _NEAR)
         for k in cand[np.argsort(box_distance[cand])]:
-            reach = min(best, _FAR)
             if box_distance[k] >= reach:
                 break
             e = self._elements[k]
-            if e.planes is None:
-                continue
-            pts = self._probe_in_box(lo[k] - reach, hi[k] + reach)
-            if len(pts):
-                best = min(best, float(e.face_distance((pts - t[e.frame]) @ R[e.frame]).min()))
+            if e.planes is not None:  # object features facing a flat side of a convex element
+                pts = self._features.inside(lo[k] - reach, hi[k] + reach)
+                if len(pts):
+                    best = min(best, float(e.face_distance((pts - t[e.frame]) @ R[e.frame]).min()))
+                    reach = min(best, _NEAR)
         return best
 
-    def _members(self, cells: np.ndarray, done: np.ndarray) -> np.ndarray:
-        """Stacked point ids of the coarse ``cells`` not yet read."""
-        ids = np.concatenate([self._cell_order[self._cell_start[c]:self._cell_start[c + 1]] for c in cells])
-        return ids[~done[ids]]
+    def _read(self, points: np.ndarray, estimate: np.ndarray, best: float) -> np.ndarray:
+        """Distance readings of points whose distance is about ``estimate``: on the full object
+        samples within ``_NEAR``, on the coarse subset beyond."""
+        out = np.empty(len(points))
+        fine = estimate <= _NEAR
+        if fine.any():
+            out[fine] = self._surface.signed_distance(points[fine], bound=best + self._reach)
+        if not fine.all():
+            out[~fine] = self._coarse_surface.signed_distance(points[~fine], bound=best + self._coarse_reach)
+        return out
+
+    def _members(self, cells: np.ndarray, done: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Stacked ids of the points of coarse ``cells`` not yet read, and the index into
+        ``cells`` of each."""
+        parts = [self._cell_order[self._cell_start[c]:self._cell_start[c + 1]] for c in cells]
+        ids = np.concatenate(parts)
+        which = np.repeat(np.arange(len(cells)), [len(part) for part in parts])
+        keep = ~done[ids]
+        return ids[keep], which[keep]
 
     def _report(self, depth: np.ndarray, where: np.ndarray, clearance: float) -> CollisionReport:
         colliding = depth > self.tolerance

@@ -72,7 +72,9 @@ class FingerStepQP:
         s.update(Px=H[self._rows, self._cols], q=g, l=lower, u=upper)
         s.warm_start(x=np.clip(self._x, lower, upper))
         res = s.solve(raise_error=False)
-        if res.info.status != "solved":
+        # "solved inaccurate" (iteration cap reached close to the optimum) still gives
+        # a usable step once clipped into the bounds; anything else is a failure.
+        if res.info.status not in ("solved", "solved inaccurate") or not np.all(np.isfinite(res.x)):
             raise QPStepError({"P": H, "q": g, "lb": lower, "ub": upper}, res.info.status)
         self._x = np.clip(res.x, lower, upper)
         return self._x.copy()

@@ -369,7 +369,8 @@ def _build_model(text: str, doc: TaggedURDF, problems: list[str]) -> pin.Model |
         return None
 
 
-def _q_initial(model: pin.Model, doc: TaggedURDF) -> np.ndarray:
+def initial_configuration(model: pin.Model, doc: TaggedURDF) -> np.ndarray:
+    """The initial joint vector: ``<isf:initial>`` values, else the middle of each joint's limits."""
     values = {t.joint: t.value for t in doc.initial}
     q = 0.5 * (np.asarray(model.lowerPositionLimit) + np.asarray(model.upperPositionLimit))
     for jid in range(1, model.njoints):
@@ -438,7 +439,7 @@ def _load(
             name=report.name,
             model=model,
             surfaces=tuple(surfaces),
-            q_initial=_q_initial(model, doc),
+            q_initial=initial_configuration(model, doc),
             geometries=geometries,
             urdf_path=path,
             palm_link=report.palm_link,

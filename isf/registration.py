@@ -39,7 +39,6 @@ import logging
 import math
 import os
 import re
-import tempfile
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
@@ -51,7 +50,7 @@ import pinocchio as pin
 import trimesh
 
 from .exceptions import ISFError
-from .gripper_loading import GripperReport, _q_initial, format_report, inspect_gripper
+from .gripper_loading import GripperReport, initial_configuration, format_report, inspect_gripper
 from .mesh_paths import MeshNotFoundError, PackageDirs, mesh_path_candidates, resolve_mesh_path
 from .surface_sampling import (
     GeometryLoadError,
@@ -107,7 +106,8 @@ class RegistrationError(ISFError, ValueError):
 
 
 # ------------------------------------------------------------------ specs
-def _vector(value, what: str, *, unit: bool = False) -> tuple[float, float, float] | None:
+def _vector(value, what: str, *, direction: bool = False) -> tuple[float, float, float] | None:
+    """``value`` as 3 floats (None stays None); a ``direction`` must not be zero."""
     if value is None:
         return None
     try:
@@ -116,11 +116,8 @@ def _vector(value, what: str, *, unit: bool = False) -> tuple[float, float, floa
         v = np.array([])
     if v.shape != (3,) or not np.all(np.isfinite(v)):
         raise RegistrationError(f"{what}={value!r} must be 3 finite numbers, e.g. (0, -1, 0)")
-    if unit:
-        norm = float(np.linalg.norm(v))
-        if norm < 1e-9:
-            raise RegistrationError(f"{what}={value!r} is the zero vector: give a direction")
-        v = v / norm
+    if direction and float(np.linalg.norm(v)) < 1e-9:
+        raise RegistrationError(f"{what}={value!r} is the zero vector: give a direction")
     return tuple(float(x) for x in v)
 
 
@@ -133,7 +130,7 @@ class ContactSpec:
         link: the link that carries the surface.
         geometry: name of one ``<collision>``/``<visual>`` element of the link; None: all.
         source: ``"collision"`` or ``"visual"``.
-        normal: cone axis in the link frame (any length; stored as a unit vector), or None.
+        normal: cone axis in the link frame (any length: isf normalises it), or None.
         max_angle: cone half-angle, radians, in (0, pi].
         box_min, box_max: corners of the selection box in the link frame, metres, or None.
         points: number of surface points, in [1, MAX_POINTS].
@@ -167,7 +164,9 @@ class ContactSpec:
             raise RegistrationError(
                 f"ContactSpec.source={self.source!r} must be 'collision' or 'visual'"
             )
-        object.__setattr__(self, "normal", _vector(self.normal, "ContactSpec.normal", unit=True))
+        object.__setattr__(
+            self, "normal", _vector(self.normal, "ContactSpec.normal", direction=True)
+        )
         object.__setattr__(self, "box_min", _vector(self.box_min, "ContactSpec.box_min"))
         object.__setattr__(self, "box_max", _vector(self.box_max, "ContactSpec.box_max"))
         if self.box_min is not None and self.box_max is not None:
@@ -193,6 +192,46 @@ class ContactSpec:
         if not isinstance(self.flip, (bool, np.bool_)):
             raise RegistrationError(f"contact {self.name!r}: flip={self.flip!r} must be a bool")
         object.__setattr__(self, "flip", bool(self.flip))
+
+    @classmethod
+    def parse(cls, text: str) -> ContactSpec:
+        """A spec from ``key=value`` words, e.g. ``"name=left link=left_finger normal=0,-1,0"``.
+
+        Keys are the field names; vectors are three comma-separated numbers; ``flip`` takes
+        ``true``/``false``. Meant for command lines (``isf tag --contact ...``).
+
+        Raises:
+            RegistrationError: an unknown key, a word without ``=``, or a bad value.
+        """
+        fields = {f for f in cls.__dataclass_fields__}
+        kwargs: dict = {}
+        for word in text.split():
+            key, eq, value = word.partition("=")
+            if not eq or key not in fields:
+                raise RegistrationError(
+                    f"contact {text!r}: {word!r} is not key=value with a key among "
+                    f"{', '.join(sorted(fields))}"
+                )
+            try:
+                if key in ("normal", "box_min", "box_max"):
+                    kwargs[key] = tuple(float(v) for v in value.split(","))
+                elif key == "max_angle":
+                    kwargs[key] = float(value)
+                elif key == "points":
+                    kwargs[key] = int(value)
+                elif key == "flip":
+                    kwargs[key] = {"true": True, "false": False}[value.lower()]
+                else:
+                    kwargs[key] = value
+            except (ValueError, KeyError) as exc:
+                raise RegistrationError(
+                    f"contact {text!r}: bad value in {word!r}; vectors are x,y,z, "
+                    "flip is true or false"
+                ) from exc
+        missing = [k for k in ("name", "link") if k not in kwargs]
+        if missing:
+            raise RegistrationError(f"contact {text!r} needs {' and '.join(missing)}=...")
+        return cls(**kwargs)
 
     def to_xml(self) -> str:
         """The ``<isf:contact .../>`` element; default-valued attributes are left out."""
@@ -330,7 +369,8 @@ class TagPreview:
                 )
             lines += [f"    problem: {p}" for p in s.problems]
         lines.append(
-            f"timing    tag {1e3 * self.tag_time:.0f} ms, validate {1e3 * self.validation_time:.0f} ms"
+            f"timing    tag {1e3 * self.tag_time:.0f} ms, "
+            f"validate {1e3 * self.validation_time:.0f} ms"
         )
         lines.append("validation (isf inspect):")
         lines += ["  " + ln for ln in format_report(self.report).splitlines()]
@@ -590,8 +630,9 @@ def _posed(text: str, doc: TaggedURDF, initial: tuple[InitialTag, ...]) -> _Pose
     """
     model = build_model(text, doc)
     overridden = {t.joint for t in initial}
-    doc_q = replace(doc, initial=tuple(t for t in doc.initial if t.joint not in overridden) + initial)
-    q = _q_initial(model, doc_q)
+    kept = tuple(t for t in doc.initial if t.joint not in overridden)
+    doc_q = replace(doc, initial=kept + initial)
+    q = initial_configuration(model, doc_q)
     data = model.createData()
     pin.framesForwardKinematics(model, data, q)
     poses = {
@@ -664,22 +705,11 @@ def _gripper_element(palm_link: str | None, approach) -> str | None:
         if not isinstance(palm_link, str) or not palm_link:
             raise RegistrationError(f"palm_link={palm_link!r} must be a link name")
         attrs.append(("palm_link", palm_link))
-    approach = _vector(approach, "approach", unit=True)
+    approach = _vector(approach, "approach", direction=True)
     if approach is not None:
-        attrs.append(("approach", _format_vector(approach)))
+        unit = np.asarray(approach) / np.linalg.norm(approach)
+        attrs.append(("approach", _format_vector(unit)))
     return _element("gripper", attrs) if attrs else None
-
-
-def _write_atomic(path: Path, data: bytes) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def tag_urdf(
@@ -749,13 +779,20 @@ def tag_urdf(
     new = _apply_rewrites(new, rewrites)
     elements = [gripper] if gripper else []
     elements += [c.to_xml() for c in contacts]
-    elements += [_element("initial", [("joint", t.joint), ("value", _ATTR_FLOAT.format(t.value))])
-                 for t in initial_tags]
+    elements += [
+        _element("initial", [("joint", t.joint), ("value", _ATTR_FLOAT.format(t.value))])
+        for t in initial_tags
+    ]
     new = _insert_elements(new, elements)
-    _write_atomic(dst, new.encode("utf-8"))
+    dst.parent.mkdir(parents=True, exist_ok=True)
+    dst.write_bytes(new.encode("utf-8"))
     t1 = time.perf_counter()
-    log.info("wrote %s (%d isf elements, %d mesh paths made absolute)", dst, len(elements),
-             len(rewrites))
+    log.info(
+        "wrote %s (%d isf elements, %d mesh paths made absolute)",
+        dst,
+        len(elements),
+        len(rewrites),
+    )
 
     report = inspect_gripper(dst)
     new_doc = parse_tagged_urdf(new)
@@ -866,7 +903,8 @@ def _fingertips(
                 f"link {name!r} has no geometry to put a contact on: choose other links"
             )
         T = posed.poses[name]
-        tips.append(_Fingertip(name, source, meshes, T[:3, :3] @ _surface_centroid(meshes) + T[:3, 3]))
+        centroid = T[:3, :3] @ _surface_centroid(meshes) + T[:3, 3]
+        tips.append(_Fingertip(name, source, meshes, centroid))
     if links is None:
         tips = _drop_side_links(tips, _movable_depth(doc))
     if len(tips) < 2:
@@ -944,7 +982,8 @@ def _distal_box(
     axis = int(np.argmax(np.abs(reach)))
     if abs(reach[axis]) < math.cos(_DISTAL_AXIS_ANGLE):
         return spec
-    tag = ContactTag(spec.name, spec.link, normal=np.asarray(spec.normal), max_angle=spec.max_angle)
+    axis_n = np.asarray(spec.normal) / np.linalg.norm(spec.normal)
+    tag = ContactTag(spec.name, spec.link, normal=axis_n, max_angle=spec.max_angle)
     tris = select_faces(tag, meshes).triangles
     sign = 1.0 if reach[axis] > 0 else -1.0
     along = sign * tris[:, :, axis]  # larger is more distal

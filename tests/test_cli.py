@@ -94,3 +94,19 @@ def test_inspect(tmp_path):
     proc = run("inspect", str(broken))
     assert proc.returncode == 1
     assert "nowhere" in proc.stdout
+
+
+def test_tag_writes_a_loadable_copy_of_a_stock_urdf(tmp_path):
+    from isf.assets import vendor_gripper
+
+    stock = vendor_gripper("franka-hand")
+    before = stock.read_bytes()
+    out = tmp_path / "franka_tagged.urdf"
+    proc = run("tag", str(stock), "--out", str(out))
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert "left_finger_pad" in proc.stdout and "OK" in proc.stdout
+    assert stock.read_bytes() == before
+    proc = run("inspect", str(out))
+    assert proc.returncode == 0 and "right_finger_pad" in proc.stdout
+    proc = run("tag", str(stock), "--out", str(tmp_path / "x.urdf"), "--approach", "1,2")
+    assert proc.returncode == 2 and proc.stderr.startswith("isf: error:")

@@ -43,8 +43,9 @@ FINGERTIPS = {
     "allegro-right": {"link_3.0_tip", "link_7.0_tip", "link_11.0_tip", "link_15.0_tip"},
     "pr2-gripper": {"left_tip", "right_tip"},
 }
-# Parallel jaws whose pads are perpendicular to the closing direction at any opening.
-PARALLEL = ("franka-hand", "robotiq-2f-85")
+# Parallel jaws and the axis of the root frame they close along, read off the files: the
+# Franka's fingers slide along y (joint axis 0 1 0); the Robotiq's pads sit at x = -+23 mm.
+CLOSING_AXIS = {"franka-hand": (0.0, 1.0, 0.0), "robotiq-2f-85": (1.0, 0.0, 0.0)}
 TIMINGS: dict[str, float] = {}
 
 
@@ -191,7 +192,7 @@ def test_pads_face_the_other_fingers(name, tagged):
         assert n @ toward > 0.7, (surface, n, toward)
 
 
-@pytest.mark.parametrize("name", PARALLEL)
+@pytest.mark.parametrize("name", sorted(CLOSING_AXIS))
 def test_parallel_pads_are_the_innermost_faces(name, tagged):
     """Pads of a parallel jaw are antiparallel and are the finger's face nearest the other
     finger (checked against every vertex of the finger's collision geometry)."""
@@ -202,8 +203,9 @@ def test_parallel_pads_are_the_innermost_faces(name, tagged):
     (a_link, a_c, a_n, a_pts), (b_link, b_c, b_n, b_pts) = frames.values()
     assert a_n @ b_n < -0.99
     poses = gripper.link_poses(q)
+    axis = np.array(CLOSING_AXIS[name])
     for link, c, pts, other in ((a_link, a_c, a_pts, b_c), (b_link, b_c, b_pts, a_c)):
-        u = (other - c) / np.linalg.norm(other - c)
+        u = axis * np.sign(axis @ (other - c))
         verts = [
             g.vertices @ poses[link][:3, :3].T + poses[link][:3, 3]
             for g in gripper.geometries
@@ -263,8 +265,12 @@ def test_existing_namespace_and_existing_tags(tmp_path, tagged):
     text = src.read_text().replace('<robot name="panda"', '<robot name="panda"' + ISF_XMLNS)
     declared.write_text(text)
     contacts = suggest_contacts(src)
-    preview = tag_urdf(declared, tmp_path / "declared" / "copy.urdf", contacts,
-                       package_dirs={"meshes": src.parent / "meshes"})
+    preview = tag_urdf(
+        declared,
+        tmp_path / "declared" / "copy.urdf",
+        contacts,
+        package_dirs={"meshes": src.parent / "meshes"},
+    )
     assert preview.ok and not preview.namespace_added
     assert preview.urdf_path.read_text().count("xmlns:isf") == 1
     # a file that is tagged already: refused, or re-tagged with replace_tags
@@ -318,8 +324,7 @@ def test_bad_tagging_requests(tmp_path):
         [
             pad,
             ContactSpec("ghost", "no_such_link"),
-            ContactSpec("empty", "right_tip", normal=(0, 0, 1), max_angle=0.1,
-                        box_min=(1, 1, 1)),
+            ContactSpec("empty", "right_tip", normal=(0, 0, 1), max_angle=0.1, box_min=(1, 1, 1)),
         ],
     )
     assert not preview.ok
@@ -415,3 +420,79 @@ def test_tutorial_runs(tmp_path, monkeypatch, capsys):
     assert (tmp_path / "franka_hand_isf_preview.ply").is_file()
     assert "best grasp: collision-free True" in printed
     assert namespace["best"].fit.mean_distance < 2e-3
+
+
+def test_contact_spec_parse_round_trips_through_the_tag():
+    spec = ContactSpec.parse(
+        "name=left link=left_finger normal=0,-2,0 max_angle=0.3 box_min=-1,-1,0.03 points=64"
+    )
+    expected = ContactSpec(
+        "left", "left_finger", normal=(0, -2, 0), max_angle=0.3, box_min=(-1, -1, 0.03), points=64
+    )
+    assert spec == expected
+    assert spec.to_xml() == (
+        '<isf:contact name="left" link="left_finger" normal="0 -2 0" max_angle="0.3" '
+        'box_min="-1 -1 0.03" points="64"/>'
+    )
+    bad = {
+        "name=a": "needs link",
+        "name=a link=b colour=red": "key=value",
+        "name=a link=b normal=1,2": "3 finite",
+        "name=a link=b flip=yes": "bad value",
+    }
+    for text, message in bad.items():
+        with pytest.raises(RegistrationError, match=message):
+            ContactSpec.parse(text)
+
+
+# A small hand-written URDF with unusual but valid formatting: CRLF line ends, a '>' inside
+# an attribute of <robot>, a commented-out mesh and </robot>, a single-quoted mesh filename
+# holding an XML entity, and </robot> on the same line as other content.
+ODD_URDF = (
+    '<?xml version="1.0"?>\r\n'
+    '<!-- <robot name="decoy"> -->\r\n'
+    '<robot name="odd > name"\r\n       xmlns:foo="urn:foo">\r\n'
+    '  <link name="palm"><collision><geometry><box size="0.06 0.02 0.02"/></geometry>'
+    "</collision></link>\r\n"
+    '  <link name="left"><collision><origin xyz="0 0.005 0.02"/><geometry>'
+    "<mesh filename='meshes/pad&amp;1.stl'/></geometry></collision></link>\r\n"
+    '  <link name="right"><collision><origin xyz="0 -0.005 0.02"/><geometry>'
+    '<box size="0.01 0.01 0.04"/></geometry></collision></link>\r\n'
+    '  <joint name="l" type="prismatic"><parent link="palm"/><child link="left"/>'
+    '<origin xyz="0 0.01 0.03"/><axis xyz="0 1 0"/>'
+    '<limit lower="0" upper="0.03" effort="1" velocity="1"/></joint>\r\n'
+    '  <joint name="r" type="prismatic"><parent link="palm"/><child link="right"/>'
+    '<origin xyz="0 -0.01 0.03"/><axis xyz="0 -1 0"/>'
+    '<limit lower="0" upper="0.03" effort="1" velocity="1"/>'
+    '<mimic joint="l"/></joint>\r\n'
+    '  <!-- <mesh filename="gone.stl"/> </robot> -->\r\n'
+    "  <foo:note text='kept'/></robot>\r\n"
+)
+
+
+def test_text_edits_survive_unusual_formatting(tmp_path):
+    src_dir = tmp_path / "vendor"
+    (src_dir / "meshes").mkdir(parents=True)
+    trimesh.creation.box(extents=(0.01, 0.01, 0.04)).export(src_dir / "meshes" / "pad&1.stl")
+    src = src_dir / "odd.urdf"
+    src.write_bytes(ODD_URDF.encode())
+    specs = suggest_contacts(src)
+    assert {s.link for s in specs} == {"left", "right"}
+    assert specs[0].normal == (0.0, -1.0, 0.0) and specs[1].normal == (0.0, 1.0, 0.0)
+    preview = tag_urdf(src, tmp_path / "out" / "odd.urdf", specs, initial={"l": 0.01})
+    assert preview.ok, preview.problems
+    assert src.read_bytes() == ODD_URDF.encode()
+    copy = preview.urdf_path.read_bytes().decode()
+    absolute = str(src_dir / "meshes" / "pad&1.stl").replace("&", "&amp;")
+    expected_head = ODD_URDF.replace(
+        '"urn:foo">', '"urn:foo"' + ISF_XMLNS + ">", 1
+    ).replace("meshes/pad&amp;1.stl", absolute)
+    body, tail = expected_head.rsplit("</robot>", 1)
+    inserted = copy[len(body) : len(copy) - len("</robot>" + tail)]
+    assert copy.startswith(body) and copy.endswith("</robot>" + tail)
+    lines = inserted.split("\r\n")
+    assert lines[0] == "" and lines[-1] == ""  # on lines of their own, CRLF like the file
+    assert [ln.split()[0] for ln in lines[1:-1]] == ["<isf:contact"] * 2 + ["<isf:initial"]
+    assert all(ln.startswith("  <isf:") for ln in lines[1:-1])
+    gripper = isf.load_gripper(preview.urdf_path)
+    assert np.allclose(gripper.q_initial, [0.01])
