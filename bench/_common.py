@@ -116,19 +116,22 @@ class Timing:
         return f"{med} ({low}-{high}, n={self.n}{cut})"
 
 
-def time_calls(fn: Callable[[], object], calls: int, warmup: int = 1) -> float:
-    """Median wall time of one call of ``fn`` over ``calls`` timed calls, seconds.
+def time_calls(fn: Callable[[], object], calls: int, warmup: int = 1) -> tuple[float, float]:
+    """Median wall time and median process CPU time of one call of ``fn``, seconds.
 
-    Each call is timed on its own with ``time.perf_counter`` (right for calls >= ~10 us).
+    Each of the ``calls`` calls is timed on its own (``time.perf_counter`` and
+    ``time.process_time``; right for calls >= ~10 us). On a shared machine the wall time also
+    counts waiting for a core; the CPU time of single-threaded code does not.
     """
     for _ in range(warmup):
         fn()
-    times = []
+    wall, cpu = [], []
     for _ in range(calls):
-        t0 = time.perf_counter()
+        c0, t0 = time.process_time(), time.perf_counter()
         fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
+        wall.append(time.perf_counter() - t0)
+        cpu.append(time.process_time() - c0)
+    return statistics.median(wall), statistics.median(cpu)
 
 
 def run_repeats(fn: Callable[[int], dict], repeats: int, budget_s: float | None,

@@ -18,7 +18,12 @@ collision-free grasps (``FitResult.mean_distance``), ``t_total`` (``PlanStats.to
 time per collision-free grasp; medians over ``--repeats`` runs (seeds 0, 1, ...) cut by
 ``--budget`` seconds per configuration (at least one run).
 
-Run from the repository root:  python bench/bench_hands.py [--quick] [--repeats 3] [--budget 20]
+``--finger-damping`` sets ``FitConfig.finger_damping`` for both hands (a diagnostic: the default
+config's finger QP may fail to converge on a 16-joint hand; the run then reports the failures).
+
+Run from the repository root:
+    python bench/bench_hands.py [--quick] [--repeats 3] [--budget 20] [--hands allegro-right]
+                                [--finger-damping 1e-6]
 """
 
 from __future__ import annotations
@@ -131,9 +136,9 @@ def load_objects(quick: bool) -> tuple[list[isf.ObjectSurface], str]:
     return (objects[:1] if quick else objects), note
 
 
-def plan_once(gripper, obj, seed: int) -> dict:
+def plan_once(gripper, obj, seed: int, config: isf.FitConfig | None = None) -> dict:
     cpu = time.process_time()
-    result = isf.plan(gripper, obj, samples=SAMPLES, sampler="regret", seed=seed)
+    result = isf.plan(gripper, obj, samples=SAMPLES, sampler="regret", seed=seed, config=config)
     cpu = time.process_time() - cpu
     s = result.stats
     free = result.collision_free_grasps()
@@ -145,11 +150,14 @@ def plan_once(gripper, obj, seed: int) -> dict:
 
 
 def bench(hand: str, gripper, obj, args) -> dict:
-    runs, failed = _common.run_repeats(lambda seed: plan_once(gripper, obj, seed), args.repeats,
-                                       _common.budget_or_none(args), catch=(isf.ISFError,))
+    config = None if args.finger_damping is None else isf.FitConfig(
+        finger_damping=args.finger_damping)
+    runs, failed = _common.run_repeats(lambda seed: plan_once(gripper, obj, seed, config),
+                                       args.repeats, _common.budget_or_none(args),
+                                       catch=(isf.ISFError,))
     row = _common.median_row(runs, failed, args.repeats)
     row["hand"], row["object"], row["points"] = hand, obj.name, obj.n_points
-    print(f"#   {hand} on {obj.name}: t_total {_common.timing_cell(row)} s, "
+    print(f"#   {hand} on {obj.name}: t_total (s) {_common.timing_cell(row)}, "
           f"{row.get('free', 0):g} collision-free", flush=True)
     return row
 
@@ -175,7 +183,10 @@ def report(rows: list[dict], note: str, args, deadline) -> list[str]:
          "mean fit error of collision-free (mm)", "t_total (s), median (min-max)",
          "CPU time (s)", "ms per collision-free", "ISF / collision time (s)",
          "ISF iterations per sample", "target t_total (s)", "met?"], body)
-    text = (f"{SAMPLES} samples, regret sampler, objects: {note}, at most {MAX_POINTS} points; "
+    damping = ("the default `FitConfig`" if args.finger_damping is None else
+               f"`FitConfig(finger_damping={args.finger_damping:g})` (NOT the default)")
+    text = (f"{SAMPLES} samples, regret sampler, {damping}, objects: {note}, at most "
+            f"{MAX_POINTS} points; "
             f"up to {args.repeats} runs per row (budget {args.budget:g} s). CPU time: process "
             "time around `isf.plan`. Allegro: tagged copy of "
             f"`{ALLEGRO}` as described in `bench/bench_hands.py`.")
@@ -185,6 +196,11 @@ def report(rows: list[dict], note: str, args, deadline) -> list[str]:
 
 def main() -> None:
     parser = _common.base_parser(__doc__.splitlines()[0], repeats=3, budget=20.0)
+    parser.add_argument("--hands", default="three-finger,allegro-right",
+                        help="comma-separated hands to run (default: both)")
+    parser.add_argument("--finger-damping", type=float, default=None,
+                        help="FitConfig.finger_damping for both hands (default: FitConfig's); a "
+                             "diagnostic for finger QPs that fail to converge")
     args = parser.parse_args()
     if args.quick:
         args.repeats = min(args.repeats, 1)
@@ -194,8 +210,13 @@ def main() -> None:
     objects, note = load_objects(args.quick)
     rows = []
     with tempfile.TemporaryDirectory(prefix="isf-bench-allegro-") as folder:
-        hands = [("three-finger", isf.load_gripper("three-finger")),
-                 (ALLEGRO, tagged_allegro(Path(folder)))]
+        makers = {"three-finger": lambda: isf.load_gripper("three-finger"),
+                  ALLEGRO: lambda: tagged_allegro(Path(folder))}
+        wanted = args.hands.split(",")
+        unknown = sorted(set(wanted) - set(makers))
+        if unknown:
+            parser.error(f"unknown hands {unknown}; choose from {sorted(makers)}")
+        hands = [(name, makers[name]()) for name in wanted]
         for obj in objects:  # both hands on the first object first (priority under --deadline)
             for hand, gripper in hands:
                 if deadline.allows(f"{hand} on {obj.name}"):

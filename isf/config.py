@@ -52,6 +52,8 @@ class FitConfig:
             times the median pair distance ...
         outlier_floor: ... and also exceeds this distance, metres.
         reject_duplicates: keep only the closest pair per object point (paper IV-B).
+        max_normal_angle: drop pairs whose contact normal is more than this far from the
+            reversed object normal, radians (not in the paper; pi turns it off).
         lock_fingers: hold the joints at their initial values (pure palm ICP).
         contact_distance: a contact point is "in contact" within this distance of
             the object, metres (used for the per-surface contact fractions).
@@ -70,6 +72,7 @@ class FitConfig:
     outlier_factor: float = 3.0
     outlier_floor: float = 0.005
     reject_duplicates: bool = True
+    max_normal_angle: float = 1.5
     lock_fingers: bool = False
     contact_distance: float = 0.002
     min_pairs: int = 6
@@ -85,7 +88,8 @@ class FitConfig:
             value = getattr(self, name)
             if not value >= 0.0:
                 raise ConfigError(f"FitConfig.{name} must be >= 0, got {value!r}")
-        positive = ("max_rotation_step", "max_revolute_step", "outlier_factor", "contact_distance")
+        positive = ("max_rotation_step", "max_revolute_step", "outlier_factor", "contact_distance",
+                    "max_normal_angle")
         for name in positive:
             value = getattr(self, name)
             if not value > 0.0:

@@ -32,13 +32,18 @@ def match(
     outlier_factor: float,
     outlier_floor: float,
     reject_duplicates: bool,
+    normals: np.ndarray | None = None,
+    max_normal_angle: float = np.pi,
 ) -> Correspondences:
     """Match contact points to their nearest object points and filter the pairs.
 
     A pair is an outlier when its distance exceeds both ``outlier_factor`` times
     the median distance and ``outlier_floor``. With ``reject_duplicates``, when
     several contact points share one object point only the closest pair is kept
-    (Zinsser et al., the paper's ref. [15]).
+    (Zinsser et al., the paper's ref. [15]). With ``normals``, a pair whose
+    contact normal is more than ``max_normal_angle`` away from the reversed object
+    normal is dropped too (a pad overhanging an edge must not be pulled by the
+    side face beyond it).
 
     Args:
         obj: the object surface.
@@ -46,13 +51,18 @@ def match(
         outlier_factor: relative outlier threshold (times the median distance).
         outlier_floor: distances below this are never outliers, metres.
         reject_duplicates: apply the duplicate filter.
+        normals: contact normals in the object frame, shape (M, 3), or None.
+        max_normal_angle: normal compatibility threshold, radians.
 
     Returns:
         the surviving pairs, sorted by contact-point index.
     """
     dist, target = obj.nearest(points)
     threshold = max(outlier_factor * float(np.median(dist)), outlier_floor)
-    source = np.flatnonzero(dist <= threshold)
+    keep = dist <= threshold
+    if normals is not None and max_normal_angle < np.pi:
+        keep &= np.einsum("ij,ij->i", normals, obj.normals[target]) <= -np.cos(max_normal_angle)
+    source = np.flatnonzero(keep)
     target, dist = target[source], dist[source]
     if reject_duplicates and len(source):
         order = np.lexsort((dist, target))

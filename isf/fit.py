@@ -65,7 +65,8 @@ def fit(
         index = np.flatnonzero(gripper.level_mask(level))
         max_iterations = max(1, config.max_iterations // 2**level)
         eps = 2**level * config.tolerance
-        start = current = _object_points(gripper, T, q, index)
+        start, current_normals = _object_points(gripper, T, q, index)
+        current = start
         displacement, eta, iteration = np.inf, 0.0, 0
         while not (1.0 - eps <= eta <= 1.0 + eps) and iteration < max_iterations:
             iteration += 1
@@ -73,6 +74,7 @@ def fit(
             pairs = match(
                 obj, current, outlier_factor=config.outlier_factor,
                 outlier_floor=config.outlier_floor, reject_duplicates=config.reject_duplicates,
+                normals=current_normals, max_normal_angle=config.max_normal_angle,
             )
             if len(pairs.source) < config.min_pairs:
                 status = FitStatus.LOST_CONTACT
@@ -81,7 +83,7 @@ def fit(
                                    obj.normals[pairs.target])
             step = ipfo(matched, T, q, qp, config)
             T, q = step.T_object_gripper, step.q
-            current = _object_points(gripper, T, q, index)
+            current, current_normals = _object_points(gripper, T, q, index)
             displacement = float(np.linalg.norm(current - start))
             eta = 1.0 if displacement <= 1e-12 else displacement / previous
             history.append(IterationRecord(
@@ -132,10 +134,11 @@ def _check_joints(gripper: Gripper, q: np.ndarray | None) -> np.ndarray:
     return gripper.clip(q)
 
 
-def _object_points(gripper: Gripper, T: np.ndarray, q: np.ndarray, index: np.ndarray) -> np.ndarray:
-    """Contact points ``index`` at ``(T, q)`` in the object frame, (len(index), 3)."""
-    points = gripper.contact_points(q, index)[0]
-    return points @ T[:3, :3].T + T[:3, 3]
+def _object_points(gripper: Gripper, T: np.ndarray, q: np.ndarray,
+                   index: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Contact points ``index`` and their normals at ``(T, q)`` in the object frame, each (len(index), 3)."""
+    points, normals = gripper.contact_points(q, index)
+    return points @ T[:3, :3].T + T[:3, 3], normals @ T[:3, :3].T
 
 
 def _final_result(gripper, obj, T, q, config, status, history, started) -> FitResult:
@@ -146,7 +149,8 @@ def _final_result(gripper, obj, T, q, config, status, history, started) -> FitRe
     normals = normals @ R.T
     pairs = match(
         obj, points, outlier_factor=config.outlier_factor, outlier_floor=config.outlier_floor,
-        reject_duplicates=config.reject_duplicates,
+        reject_duplicates=config.reject_duplicates, normals=normals,
+        max_normal_angle=config.max_normal_angle,
     )
     src, targets = pairs.source, obj.points[pairs.target]
     target_normals = obj.normals[pairs.target]

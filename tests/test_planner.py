@@ -49,18 +49,19 @@ def _lowest_point(gripper, grasp):
     return min(heights)
 
 
-def test_table_rejects_grasps_below_it(paper_gripper):
-    """A box on a table at its bottom face: no collision-free grasp reaches below the table."""
-    box = isf.open_object("shape:box")  # 5 x 2 x 1.5 cm, centred: bottom face at z = -0.0075
-    table = isf.Plane.table(-0.0075)
-    result = isf.plan(paper_gripper, box, samples=20, seed=1, obstacles=[table])
+def test_table_rejects_grasps_below_it():
+    """A tall box standing on a table: no collision-free grasp reaches below the table."""
+    gripper = isf.load_gripper("flat-parallel")
+    box = isf.load_object(trimesh.creation.box(extents=[0.02, 0.015, 0.05]), name="tall box")
+    table = isf.Plane.table(-0.025)  # the box's bottom face
+    result = isf.plan(gripper, box, samples=20, seed=1, obstacles=[table])
     free = result.collision_free_grasps()
     rejected = [g for g in result.grasps if g.collision.obstacle == "table"]
     assert free and rejected
     for grasp in free:
-        assert _lowest_point(paper_gripper, grasp) > -0.0075 - 0.002  # tolerance: 2 mm
+        assert _lowest_point(gripper, grasp) > -0.025 - 0.002  # tolerance: 2 mm
     for grasp in rejected:
-        assert _lowest_point(paper_gripper, grasp) < -0.0075 - 0.002
+        assert _lowest_point(gripper, grasp) < -0.025 - 0.002
 
 
 def spheres_and_rod():
