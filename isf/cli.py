@@ -95,8 +95,11 @@ def main(argv: list[str] | None = None) -> int:
         print(f"isf: error: {_one_line(err)}", file=sys.stderr)
         return EXIT_USAGE
     except KeyboardInterrupt:
-        print("isf: interrupted, nothing written", file=sys.stderr)
+        print("isf: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # e.g. `isf plan ... | head`: the reader left, not an error of ours
+        sys.stderr.close()
+        return EXIT_OK
 
 
 def _one_line(err: Exception) -> str:

@@ -7,13 +7,17 @@ obstacle :class:`Plane`, all in the object frame, metres.
 Penetration depth (how deep gripper geometry sits inside the object or an obstacle)
     * **Planes:** exact. A linear height attains its minimum over a mesh at a vertex, so the
       lowest convex-hull vertex of each element gives its depth below the plane.
+    Both depth estimates run only for elements whose surface crosses the object's, which
+    coal tells exactly (an element that crosses nothing is wholly outside, or wholly inside,
+    where any one of its vertices gives the depth estimate).
+
     * **Gripper into object:** points sampled evenly (1 mm, at most 800) on each element's surface, plus
       its vertices, get the signed distance ``(p - o) . n_o`` from their nearest object point
       ``o`` with outward normal ``n_o``, taken as the largest of ``(p - o_k) . n_k`` over its
       6 nearest object points: a point is inside only when it lies below every nearby tangent
       plane, which keeps points beside a convex edge of the object outside (the price: a
       shallow penetration right at a concave crease of the object can read as none). This
-      works for meshes and point clouds alike; a closed mesh object is resampled at 0.5 mm.
+      works for meshes and point clouds alike; a closed mesh object is resampled at 1 mm.
     * **Object into gripper:** coal (``coal.collide``, BVH against the object's BVH or, for a
       point cloud, its OcTree) tells exactly whether an element's surface crosses the object's.
       Only then are the object's points tested for lying inside the (closed) element: exactly
@@ -30,7 +34,7 @@ Clearance
     the smallest distance from a *non-contact* element's surface samples to the nearest object
     point (contact elements are meant to touch), and from *every* element's hull to each
     obstacle plane; 0 when a non-contact element touches or penetrates the object, or any
-    element an obstacle. Accurate to the object's point spacing.
+    element an obstacle.
     *Contact elements* are those the contact-surface points of their link lie on (or, when none
     does, every element of that link).
 """
@@ -57,8 +61,8 @@ logger = logging.getLogger(__name__)
 
 _SAMPLE_SPACING = 0.001  # gripper surface samples, m
 _MAX_SAMPLES = 800  # per element (spacing grows on large elements)
-_OBJECT_SPACING = 0.0005  # resampling of a closed mesh object, m
-_MAX_OBJECT_SAMPLES = 200000
+_OBJECT_SPACING = 0.001  # resampling of a closed mesh object, m
+_MAX_OBJECT_SAMPLES = 50000
 _NEIGHBOURS = 6  # tangent planes of the nearest object points a point must lie below to be inside
 _ON_SURFACE = 1e-6  # a contact point this close to an element lies on it, m
 
@@ -135,6 +139,24 @@ def _even_samples(mesh: trimesh.Trimesh, spacing: float, max_points: int,
     return points, mesh.face_normals[face]
 
 
+def _point_triangle_distance(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """Exact distance of each point (M, 3) to the nearest of the triangles (F, 3, 3), metres (M,)."""
+    a, b, c = triangles[:, 0], triangles[:, 1], triangles[:, 2]
+    p = points[:, None, :]
+    n = np.cross(b - a, c - a)
+    n2 = np.maximum(np.einsum("fi,fi->f", n, n), 1e-300)
+    foot = p - (np.einsum("mfi,fi->mf", p - a, n) / n2)[..., None] * n
+    inside = np.ones(foot.shape[:2], dtype=bool)
+    for x, y in ((a, b), (b, c), (c, a)):  # the foot lies inside when every edge sees it on n's side
+        inside &= np.einsum("mfi,fi->mf", np.cross(y - x, foot - x), n) >= 0
+    best = np.where(inside, np.linalg.norm(p - foot, axis=2), np.inf)
+    for x, y in ((a, b), (b, c), (c, a)):  # else the nearest point lies on an edge
+        d = y - x
+        s = np.clip(np.einsum("mfi,fi->mf", p - x, d) / np.maximum(np.einsum("fi,fi->f", d, d), 1e-300), 0, 1)
+        best = np.minimum(best, np.linalg.norm(p - (x + s[..., None] * d), axis=2))
+    return best.min(axis=1)
+
+
 def _bvh(vertices: np.ndarray, faces: np.ndarray) -> coal.BVHModelOBBRSS:
     model = coal.BVHModelOBBRSS()
     model.beginModel(len(faces), len(vertices))
@@ -152,9 +174,11 @@ class _TangentPlanes:
     every nearby tangent plane (see the module docs).
     """
 
-    def __init__(self, points: np.ndarray, normals: np.ndarray):
+    def __init__(self, points: np.ndarray, normals: np.ndarray, spacing: float):
         self.points = np.ascontiguousarray(points, dtype=float)
         self.normals = np.ascontiguousarray(normals, dtype=float)
+        self.spacing = float(spacing)
+        """Typical distance between neighbouring points, metres."""
         self.tree = cKDTree(self.points)
 
     def signed_distance(self, query: np.ndarray) -> np.ndarray:
@@ -195,7 +219,7 @@ class _Element:
                 n = sign * mesh.face_normals
                 self.planes = np.c_[n, np.einsum("ij,ij->i", n, mesh.triangles[:, 0])]
             else:
-                self.surface = _TangentPlanes(samples, normals * sign)
+                self.surface = _TangentPlanes(samples, normals * sign, np.sqrt(mesh.area / len(samples)))
         self.bvh = _bvh(mesh.vertices, mesh.faces)
         self.contact = False
 
@@ -257,25 +281,25 @@ class CollisionChecker:
         for link in dict.fromkeys(s.link for s in gripper.surfaces):
             points = np.concatenate([s.points for s in gripper.surfaces if s.link == link]).astype(float)
             mine = [e for e in self._elements if e.link == link]
-            hits = [e for e in mine if np.all(np.abs(
-                trimesh.proximity.signed_distance(e.mesh, points[:: max(1, len(points) // 32)])
-            ) <= _ON_SURFACE)] if mine else []
+            probe = points[:: max(1, len(points) // 32)]
+            hits = [e for e in mine if _point_triangle_distance(probe, e.mesh.triangles).max() <= _ON_SURFACE]
             for e in hits or mine:
                 e.contact = True
 
     @staticmethod
-    def _object_samples(obj: ObjectSurface, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-        """Dense samples of a closed, outward mesh object; the object's own points otherwise."""
+    def _object_samples(obj: ObjectSurface, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, float]:
+        """Dense samples of a closed, outward mesh object (points, normals, spacing); else the object's own."""
         if not obj.is_mesh:
-            return obj.points, obj.normals
+            return obj.points, obj.normals, obj.spacing
         mesh = trimesh.Trimesh(np.asarray(obj.mesh_vertices, float), np.asarray(obj.mesh_faces, np.int64),
                                process=False, validate=False)
         if not (mesh.is_watertight and mesh.is_winding_consistent and mesh.volume > 0):
             logger.debug("%s: mesh not closed and outward; collision checks use its points", obj.name)
-            return obj.points, obj.normals
+            return obj.points, obj.normals, obj.spacing
         spacing = min(obj.spacing, _OBJECT_SPACING)
         points, normals = _even_samples(mesh, spacing, _MAX_OBJECT_SAMPLES, rng)
-        return np.concatenate([obj.points, points]), np.concatenate([obj.normals, normals])
+        spacing = float(np.sqrt(mesh.area / len(points)))
+        return np.concatenate([obj.points, points]), np.concatenate([obj.normals, normals]), spacing
 
     @staticmethod
     def _coal_object(obj: ObjectSurface):
@@ -302,12 +326,14 @@ class CollisionChecker:
             raise InvalidInputError(f"q must hold {self.gripper.n_joints} finite joint values, got {q.shape}")
         return T, q
 
+    def _surfaces_cross(self, e: _Element, T_e: np.ndarray) -> bool:
+        """True when the surface of element ``e`` posed at ``T_e`` crosses the object's (coal)."""
+        self._result.clear()
+        return bool(coal.collide(e.bvh, coal.Transform3s(T_e[:3, :3], T_e[:3, 3]), self._object_geometry,
+                                 self._identity, self._request, self._result))
+
     def _depth_object_into(self, e: _Element, T_e: np.ndarray) -> float:
         """Deepest object point inside element ``e`` posed at ``T_e``, metres (0 if none)."""
-        self._result.clear()
-        if not coal.collide(e.bvh, coal.Transform3s(T_e[:3, :3], T_e[:3, 3]), self._object_geometry,
-                            self._identity, self._request, self._result):
-            return 0.0
         world = T_e[:3, :3] @ e.hull.T
         lo, hi = world.min(axis=1) + T_e[:3, 3], world.max(axis=1) + T_e[:3, 3]
         near = np.all((self._points >= lo) & (self._points <= hi), axis=1)
@@ -318,6 +344,21 @@ class CollisionChecker:
             sd = (local @ e.planes[:, :3].T - e.planes[:, 3]).max(axis=1)
             return float(max(0.0, -sd.min()))
         return e.surface.depth(local)
+
+    def _distance(self, e: _Element, T_e: np.ndarray, samples: np.ndarray, bound: float) -> float:
+        """Distance from element ``e`` (posed at ``T_e``, surface ``samples``) to the object, metres.
+
+        Exact (coal, BVH against BVH) for a mesh object; for a point cloud, the distance from the
+        element's samples to the nearest object point (a coarse pass bounds the fine one).
+        """
+        if self.object.is_mesh:
+            result = coal.DistanceResult()
+            return float(coal.distance(e.bvh, coal.Transform3s(T_e[:3, :3], T_e[:3, 3]), self._object_geometry,
+                                       self._identity, coal.DistanceRequest(), result))
+        tree = self._surface.tree
+        bound = min(bound, float(tree.query(samples[::8], workers=1)[0].min()))
+        dist, _ = tree.query(samples, workers=1, distance_upper_bound=bound + 1e-12)
+        return float(dist.min())
 
     def check(self, T_object_gripper: np.ndarray, q: np.ndarray) -> CollisionReport:
         """Check the gripper at palm pose ``T_object_gripper`` (4, 4) and joints ``q`` (n_joints,).
@@ -344,19 +385,20 @@ class CollisionChecker:
             if near or not e.contact:
                 samples = e.samples @ R.T + t
                 in_box = np.all((samples >= self._lo) & (samples <= self._hi), axis=1)
-                d_in = self._surface.depth(samples[in_box]) if near else 0.0
-                d_out = self._depth_object_into(e, T_e) if near else 0.0
+                d_in = d_out = 0.0
+                if near and self._surfaces_cross(e, T_e):
+                    d_in = self._surface.depth(samples[in_box])
+                    d_out = self._depth_object_into(e, T_e)
+                elif near:  # no crossing: wholly outside, or wholly inside (then any vertex tells)
+                    d_in = self._surface.depth(samples[-1:])
                 d = max(d_in, d_out)
                 if d > depth:
                     depth, where = d, "object"
                 if not e.contact:
                     if d > 0.0:
                         clearance = 0.0
-                    else:  # a coarse pass bounds the fine one, which then prunes early
-                        tree = self._surface.tree
-                        bound = min(clearance, float(tree.query(samples[::8], workers=1)[0].min()))
-                        dist, _ = tree.query(samples, workers=1, distance_upper_bound=bound + 1e-12)
-                        clearance = min(clearance, float(dist.min()))
+                    else:
+                        clearance = min(clearance, self._distance(e, T_e, samples, clearance))
             if depth > self.tolerance:
                 colliding.append(e.link)
             if depth > worst:

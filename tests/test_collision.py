@@ -192,3 +192,211 @@ def test_thin_feature_between_gripper_samples_is_found(gripper, keep_mesh):
     report = checker.check(pose(0.015 - 0.005), [0.03])
     assert not report.collision_free and report.colliding_links == ("palm",)
     assert report.penetration == pytest.approx(0.005, abs=5e-4)
+
+
+# ------------------------------------------------------------------ independent references
+def _boxes(gripper: Gripper) -> list[tuple[str, str, np.ndarray, np.ndarray]]:
+    """(link, name, lo, hi) of every box element, link frame."""
+    return [(g.link, g.name, g.vertices.min(axis=0), g.vertices.max(axis=0)) for g in gripper.geometries]
+
+
+def _link_pose(T: np.ndarray, link: str, q: float) -> np.ndarray:
+    """T_object_link of the jaw, written out by hand (left slides +x by q, right -x by q)."""
+    shift = np.eye(4)
+    shift[0, 3] = {"palm": 0.0, "left": q, "right": -q}[link]
+    return T @ shift
+
+
+def _deepest(R, p, lo, hi) -> float:
+    """Exact depth of the deepest point of either surface inside the other solid: a box
+    [lo, hi] posed by (R, p) against the cube [-CUBE, CUBE]^3, by linear programs (negative
+    when apart). One LP per face of each box: maximise s subject to the point on that face and
+    s below its distance to every face plane of the other box."""
+    from scipy.optimize import linprog
+
+    best = -np.inf
+    for j in range(3):  # a face of the gripper box, inside the cube
+        for v in (lo[j], hi[j]):
+            bounds = [(lo[i], hi[i]) if i != j else (v, v) for i in range(3)] + [(None, None)]
+            A = [[*R[i], 1.0] for i in range(3)] + [[*(-R[i]), 1.0] for i in range(3)]
+            b = [CUBE - p[i] for i in range(3)] + [CUBE + p[i] for i in range(3)]
+            res = linprog([0, 0, 0, -1], A_ub=A, b_ub=b, bounds=bounds, method="highs")
+            best = max(best, -res.fun)
+    for j in range(3):  # a face of the cube, inside the gripper box
+        for v in (-CUBE, CUBE):
+            bounds = [(-CUBE, CUBE) if i != j else (v, v) for i in range(3)] + [(None, None)]
+            A = [[*(-R[:, i]), 1.0] for i in range(3)] + [[*R[:, i], 1.0] for i in range(3)]
+            b = [-(R[:, i] @ p) - lo[i] for i in range(3)] + [hi[i] + R[:, i] @ p for i in range(3)]
+            res = linprog([0, 0, 0, -1], A_ub=A, b_ub=b, bounds=bounds, method="highs")
+            best = max(best, -res.fun)
+    return best
+
+
+def _random_poses(seed: int, n: int, radius: tuple[float, float]):
+    """n random (T, q) with the palm frame at a random direction and distance from the cube."""
+    rng = np.random.default_rng(seed)
+    for _ in range(n):
+        axis = rng.normal(size=3)
+        R = trimesh.transformations.rotation_matrix(rng.uniform(0, np.pi), axis)[:3, :3]
+        direction = rng.normal(size=3)
+        T = np.eye(4)
+        T[:3, :3] = R
+        T[:3, 3] = direction / np.linalg.norm(direction) * rng.uniform(*radius)
+        yield T, float(rng.uniform(0.0, 0.04))
+
+
+@pytest.fixture(scope="module")
+def exact_poses(gripper):
+    """Random poses with the exact deepest penetration of the whole gripper into the cube."""
+    out = []
+    for T, q in _random_poses(7, 24, (0.025, 0.065)):
+        depth = 0.0
+        for link, _, lo, hi in _boxes(gripper):
+            M = _link_pose(T, link, q)
+            corners = trimesh.bounds.corners(np.array([lo, hi])) @ M[:3, :3].T + M[:3, 3]
+            if np.all(corners.max(axis=0) > -CUBE) and np.all(corners.min(axis=0) < CUBE):
+                depth = max(depth, _deepest(M[:3, :3], M[:3, 3], lo, hi))
+        out.append((T, q, depth))
+    return out
+
+
+def test_penetration_matches_exact_depths(cube, exact_poses):
+    tol = cube.tolerance
+    n_deep = 0
+    for T, q, exact in exact_poses:
+        report = cube.check(T, [q])
+        assert report.penetration <= exact + 1e-9  # never reads deeper than the truth
+        if exact <= 0.006:
+            assert report.penetration >= exact - 1e-3, (exact, report)
+        else:
+            n_deep += 1
+            assert report.penetration >= 0.8 * exact, (exact, report)
+        if exact <= tol:
+            assert report.collision_free
+        elif exact > tol + 1e-3:
+            assert not report.collision_free
+    assert 3 <= n_deep <= len(exact_poses) - 8  # the poses cover both regimes
+
+
+def _coal_bvh(vertices, faces):
+    import coal
+
+    model = coal.BVHModelOBBRSS()
+    model.beginModel(len(faces), len(vertices))
+    model.addVertices(np.ascontiguousarray(vertices, dtype=np.float64))
+    model.addTriangles(np.ascontiguousarray(faces, dtype=np.int64))
+    model.endModel()
+    return model
+
+
+def test_clearance_matches_coal_mesh_distances(cube, gripper, cube_mesh, exact_poses):
+    import coal
+
+    cube_bvh = _coal_bvh(cube_mesh.vertices, cube_mesh.faces)
+    spacing = cube._surface.spacing
+    checked = 0
+    for T, q, exact in exact_poses:
+        if exact > 0:
+            continue
+        distance = np.inf
+        for g in gripper.geometries:
+            if g.name.endswith("_pad"):  # contact elements do not count
+                continue
+            M = _link_pose(T, g.link, q)
+            distance = min(distance, coal.distance(
+                _coal_bvh(g.vertices, g.faces), coal.Transform3s(M[:3, :3], M[:3, 3]), cube_bvh,
+                coal.Transform3s(), coal.DistanceRequest(), coal.DistanceResult()))
+        report = cube.check(T, [q])
+        # half the object's sample spacing, plus 5 % of the distance (coarser far away)
+        assert report.clearance == pytest.approx(distance, abs=spacing / 2 + 0.05 * distance)
+        checked += 1
+    assert checked >= 5
+
+
+# ------------------------------------------------------------------ other element kinds
+def _with_palm(gripper: Gripper, palm: trimesh.Trimesh) -> Gripper:
+    geometries = (LinkGeometry("palm", "palm", np.asarray(palm.vertices), np.asarray(palm.faces)),
+                  *gripper.geometries[1:])
+    return Gripper(name="jaw", model=gripper.model, surfaces=gripper.surfaces,
+                   q_initial=gripper.q_initial, geometries=geometries)
+
+
+def test_non_convex_palm_finds_a_thin_feature_inside_it(gripper):
+    # An L-shaped palm: the usual 8 x 2 x 2 cm block plus a 2 x 2 x 2 cm stub on top of one
+    # end. The 1 mm plate's edge is 5 mm deep in the block part (as in the thin-feature test).
+    from shapely.geometry import Polygon
+
+    outline = Polygon([(-0.04, -0.02), (0.04, -0.02), (0.04, 0.0), (-0.02, 0.0), (-0.02, 0.02),
+                       (-0.04, 0.02)])  # (x, z) of the L
+    palm = trimesh.creation.extrude_polygon(outline, 0.02)  # extruded along +z from 0
+    palm.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, (1, 0, 0)))  # -> y
+    palm.apply_translation((0.0, 0.01, 0.0))  # |y| <= 1 cm
+    assert palm.is_watertight and not palm.is_convex
+    jaw = _with_palm(gripper, palm)
+    plate = trimesh.creation.box(extents=(0.03, 0.001, 0.03))
+    report = CollisionChecker(jaw, mesh_object(plate, 3000)).check(pose(0.015 - 0.005), [0.03])
+    assert not report.collision_free and report.colliding_links == ("palm",)
+    assert report.penetration == pytest.approx(0.005, abs=1e-3)
+
+
+def test_open_palm_sheet_still_collides_through_its_surface(gripper, cube_mesh):
+    # The palm as a single open square sheet at z = -1 cm (no inside): only its own points
+    # can penetrate. Lowered 5 mm into the cube it is 5 mm deep.
+    sheet = trimesh.Trimesh([[-0.04, -0.01, -0.01], [0.04, -0.01, -0.01], [0.04, 0.01, -0.01],
+                             [-0.04, 0.01, -0.01]], [[0, 1, 2], [0, 2, 3]])
+    checker = CollisionChecker(_with_palm(gripper, sheet), mesh_object(cube_mesh))
+    report = checker.check(pose(CUBE - 0.005 - 0.01), [CUBE + GAP])
+    assert not report.collision_free and report.colliding_links == ("palm",)
+    assert report.penetration == pytest.approx(0.005, abs=5e-4)
+
+
+def test_surfaces_on_no_geometry_make_the_whole_link_contact(gripper, cube_mesh):
+    # Contact points 1 mm off every geometry (e.g. taken from visual meshes): both finger
+    # elements then count as contact, so only the palm (1 cm above the cube) sets clearance.
+    moved = tuple(ContactSurface(s.name, s.link, s.points + [0.0, 0.0, 0.001], s.normals, s.area)
+                  for s in gripper.surfaces)
+    jaw = Gripper(name="jaw", model=gripper.model, surfaces=moved, q_initial=gripper.q_initial,
+                  geometries=gripper.geometries)
+    report = CollisionChecker(jaw, mesh_object(cube_mesh)).check(pose(0.03), [CUBE + GAP])
+    assert report.clearance == pytest.approx(0.01, abs=2e-4)
+
+
+# ------------------------------------------------------------------ inputs and values
+def test_plane_normalises_its_normal_and_offset():
+    plane = Plane((0.0, 0.0, 2.0), 1.0, name="shelf")
+    assert np.allclose(plane.normal, (0, 0, 1)) and plane.offset == pytest.approx(0.5)
+    assert np.allclose(plane.height(np.array([[0.0, 0.0, 0.5], [1.0, 2.0, 0.2]])), [0.0, -0.3])
+    table = Plane.table(-0.1)
+    assert table.name == "table" and table.height(np.array([[0.0, 0.0, 0.0]]))[0] == pytest.approx(0.1)
+
+
+@pytest.mark.parametrize("normal", [(0.0, 0.0, 0.0), (1.0, 0.0), (np.nan, 0.0, 1.0)])
+def test_bad_plane_normal_is_rejected(normal):
+    with pytest.raises(InvalidInputError, match="normal"):
+        Plane(normal, 0.0)
+
+
+def test_bad_inputs_are_rejected(gripper, cube_mesh):
+    obj = mesh_object(cube_mesh, 500, keep_mesh=False)
+    with pytest.raises(InvalidInputError, match="tolerance"):
+        CollisionChecker(gripper, obj, tolerance=-0.001)
+    with pytest.raises(InvalidInputError, match="Plane"):
+        CollisionChecker(gripper, obj, obstacles=[(0, 0, 1, 0)])
+    bare = Gripper(name="bare", model=gripper.model, surfaces=gripper.surfaces,
+                   q_initial=gripper.q_initial)
+    with pytest.raises(GripperDescriptionError, match="no link geometry"):
+        CollisionChecker(bare, obj)
+    checker = CollisionChecker(gripper, obj)
+    with pytest.raises(InvalidInputError, match="4x4"):
+        checker.check(np.eye(3), [0.02])
+    with pytest.raises(InvalidInputError, match="rigid"):
+        checker.check(2 * np.eye(4), [0.02])
+    with pytest.raises(InvalidInputError, match="1 finite joint"):
+        checker.check(np.eye(4), [0.02, 0.01])
+
+
+def test_report_is_plain_values(cube):
+    report = cube.check(pose(CUBE - 0.005), [CUBE + GAP])
+    assert isinstance(report, CollisionReport)
+    assert type(report.penetration) is float and type(report.clearance) is float
+    assert isinstance(report.collision_free, bool)
