@@ -16,13 +16,13 @@ a different member selection from the same wheel, the folder is fetched again an
 
 Sources (all wheels are pure data for isf; pybullet's is fetched for cp311/manylinux on any host):
 
-=======================  =================================================================
-``genesis-world==1.4.5``  Stanford bunny and dragon (unit-normalised), Franka hand URDF
-``pybullet==3.2.7``       random objects 000-499, duck, mug, PR2 gripper URDF
+=============================  ====================================================================
+``genesis-world==1.4.5``       Stanford bunny and dragon (unit-normalised), Franka hand URDF
+``pybullet==3.2.7``            random objects 000-499, duck, mug, PR2 gripper URDF
 ``example-robot-data==6.0.0``  Allegro hand (right, left), Franka arm + hand
-``airo-models==0.0.12``   Robotiq 2F-85 URDF
-``robosuite==1.5.2``      household meshes in metres (bottle, bread, can, cereal, lemon, milk)
-=======================  =================================================================
+``airo-models==0.0.12``        Robotiq 2F-85 URDF
+``robosuite==1.5.2``           household meshes in metres (bottle, bread, can, cereal, lemon, milk)
+=============================  ====================================================================
 
 YCB objects are not fetched: they are read from ``$ISF_YCB_DIR`` or from a ``shared/data/ycb``
 folder found by walking up from the current working directory.

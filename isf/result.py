@@ -52,7 +52,8 @@ class FitResult:
         T_object_gripper: final pose of the gripper frame (URDF root link) in the object frame, (4, 4).
         q: final joint vector, (n_joints,), metres or radians.
         joints: the same, by joint name.
-        mean_distance: mean |point-to-plane distance| of the final matched pairs, metres (lower is better).
+        mean_distance: mean absolute point-to-plane distance of the final matched pairs,
+            metres (lower is better).
         normal_misalignment: mean angle between each contact normal and the reversed
             object normal, radians (0 = faces flush).
         error: total fitting error E of the final pairs, m^2 (eq. 9a).

@@ -123,7 +123,9 @@ class Sampler(abc.ABC):
         gripper: the gripper of the current plan (set by :meth:`reset`).
     """
 
+    #: The public name, ``[a-z0-9_]+``, equal to the entry-point name.
     name: ClassVar[str] = ""
+    #: One line, shown by ``isf samplers``.
     description: ClassVar[str] = ""
 
     obj: ObjectSurface | None = None
