@@ -12,8 +12,6 @@ with palm height ``H`` and joint value ``q`` (object frame):
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -43,7 +41,8 @@ def _box(link: str, name: str, lo, hi) -> LinkGeometry:
     lo, hi = np.asarray(lo, float), np.asarray(hi, float)
     mesh = trimesh.creation.box(extents=hi - lo)
     mesh.apply_translation((lo + hi) / 2)
-    return LinkGeometry(link=link, name=name, vertices=np.asarray(mesh.vertices), faces=np.asarray(mesh.faces))
+    return LinkGeometry(link=link, name=name, vertices=np.asarray(mesh.vertices),
+                        faces=np.asarray(mesh.faces))
 
 
 def _pad_surface(link: str, side: float) -> ContactSurface:
@@ -61,16 +60,20 @@ def jaw_gripper() -> Gripper:
         for name, a, b in (("pad", 0.0, PAD), ("body", PAD, PAD + BODY)):
             lo, hi = sorted((s * a, s * b))
             geometries.append(_box(link, f"{link}_{name}", (lo, -0.01, 0.0), (hi, 0.01, LENGTH)))
-    return Gripper(name="jaw", model=model, surfaces=(_pad_surface("left", 1.0), _pad_surface("right", -1.0)),
-                   q_initial=np.array([0.02]), geometries=tuple(geometries))
+    surfaces = (_pad_surface("left", 1.0), _pad_surface("right", -1.0))
+    return Gripper(name="jaw", model=model, surfaces=surfaces, q_initial=np.array([0.02]),
+                   geometries=tuple(geometries))
 
 
 def mesh_object(mesh: trimesh.Trimesh, n: int = 3000, *, keep_mesh: bool = True) -> ObjectSurface:
-    """Surface samples of a trimesh shape with face normals; the mesh too unless ``keep_mesh`` is False."""
+    """Random surface samples of a trimesh shape with face normals, plus the mesh itself unless
+    ``keep_mesh`` is False (then a bare point cloud)."""
     points, face = trimesh.sample.sample_surface(mesh, n, seed=1)
-    extra = {"mesh_vertices": np.asarray(mesh.vertices), "mesh_faces": np.asarray(mesh.faces)} if keep_mesh else {}
-    return ObjectSurface(points=points, normals=mesh.face_normals[face], spacing=float(np.sqrt(mesh.area / n)),
-                         name="test object", **extra)
+    extra = {}
+    if keep_mesh:
+        extra = {"mesh_vertices": np.asarray(mesh.vertices), "mesh_faces": np.asarray(mesh.faces)}
+    return ObjectSurface(points=points, normals=mesh.face_normals[face],
+                         spacing=float(np.sqrt(mesh.area / n)), name="test object", **extra)
 
 
 def pose(height: float, shift=(0.0, 0.0)) -> np.ndarray:
@@ -141,7 +144,8 @@ def test_finger_below_the_table_is_rejected_with_the_analytic_depth(cube_on_tabl
     report = cube_on_table.check(pose(CUBE + 0.002), [CUBE + GAP])
     assert not report.collision_free
     assert report.obstacle == "table"
-    assert report.penetration == pytest.approx(LENGTH - 0.002 - 2 * CUBE, abs=1e-9)  # exact: vertices
+    exact = LENGTH - 0.002 - 2 * CUBE  # from the vertices: exact
+    assert report.penetration == pytest.approx(exact, abs=1e-9)
     assert report.colliding_links == ("left", "right")
     assert report.clearance == 0.0
 
@@ -157,7 +161,7 @@ def test_table_clearance_counts_the_contact_geometry_too(cube_on_table):
 
 @pytest.mark.parametrize(("height", "shift", "q", "gap"), [
     (0.05, (0.0, 0.0), 0.03, 0.012),  # jaw open around the cube: bodies 12 mm off its sides
-    (0.03, (0.0, 0.05), CUBE + GAP, float(np.hypot(0.02, PAD + GAP))),  # beside the cube, bodies nearest
+    (0.03, (0.0, 0.05), CUBE + GAP, float(np.hypot(0.02, PAD + GAP))),  # beside: bodies nearest
     (0.3, (0.0, 0.0), CUBE + GAP, float(np.hypot(0.3 - LENGTH - CUBE, PAD + GAP))),  # far above
 ])
 def test_clearly_separated_grippers_report_the_analytic_gap(cube, height, shift, q, gap):
@@ -170,7 +174,8 @@ def test_clearly_separated_grippers_report_the_analytic_gap(cube, height, shift,
 @pytest.mark.parametrize("keep_mesh", [True, False])
 def test_curved_object_depths_and_gaps(gripper, keep_mesh):
     R = 0.02
-    sphere = mesh_object(trimesh.creation.icosphere(subdivisions=4, radius=R), 4000, keep_mesh=keep_mesh)
+    ball = trimesh.creation.icosphere(subdivisions=4, radius=R)
+    sphere = mesh_object(ball, 4000, keep_mesh=keep_mesh)
     checker = CollisionChecker(gripper, sphere)
     report = checker.check(pose(R - 0.004), [R + GAP])  # palm 4 mm into the sphere's top
     assert not report.collision_free and report.colliding_links == ("palm",)
@@ -197,7 +202,8 @@ def test_thin_feature_between_gripper_samples_is_found(gripper, keep_mesh):
 # ------------------------------------------------------------------ independent references
 def _boxes(gripper: Gripper) -> list[tuple[str, str, np.ndarray, np.ndarray]]:
     """(link, name, lo, hi) of every box element, link frame."""
-    return [(g.link, g.name, g.vertices.min(axis=0), g.vertices.max(axis=0)) for g in gripper.geometries]
+    return [(g.link, g.name, g.vertices.min(axis=0), g.vertices.max(axis=0))
+            for g in gripper.geometries]
 
 
 def _link_pose(T: np.ndarray, link: str, q: float) -> np.ndarray:
@@ -293,7 +299,7 @@ def test_clearance_matches_coal_mesh_distances(cube, gripper, cube_mesh, exact_p
     import coal
 
     cube_bvh = _coal_bvh(cube_mesh.vertices, cube_mesh.faces)
-    spacing = cube._surface.spacing
+    spacing = cube.object.spacing
     checked = 0
     for T, q, exact in exact_poses:
         if exact > 0:
@@ -351,9 +357,9 @@ def test_open_palm_sheet_still_collides_through_its_surface(gripper, cube_mesh):
 
 
 def test_surfaces_on_no_geometry_make_the_whole_link_contact(gripper, cube_mesh):
-    # Contact points 1 mm off every geometry (e.g. taken from visual meshes): both finger
+    # Contact points 1 mm in front of the pads (e.g. taken from visual meshes): both finger
     # elements then count as contact, so only the palm (1 cm above the cube) sets clearance.
-    moved = tuple(ContactSurface(s.name, s.link, s.points + [0.0, 0.0, 0.001], s.normals, s.area)
+    moved = tuple(ContactSurface(s.name, s.link, s.points + 0.001 * s.normals, s.normals, s.area)
                   for s in gripper.surfaces)
     jaw = Gripper(name="jaw", model=gripper.model, surfaces=moved, q_initial=gripper.q_initial,
                   geometries=gripper.geometries)
@@ -367,7 +373,8 @@ def test_plane_normalises_its_normal_and_offset():
     assert np.allclose(plane.normal, (0, 0, 1)) and plane.offset == pytest.approx(0.5)
     assert np.allclose(plane.height(np.array([[0.0, 0.0, 0.5], [1.0, 2.0, 0.2]])), [0.0, -0.3])
     table = Plane.table(-0.1)
-    assert table.name == "table" and table.height(np.array([[0.0, 0.0, 0.0]]))[0] == pytest.approx(0.1)
+    assert table.name == "table"
+    assert table.height(np.array([[0.0, 0.0, 0.0]]))[0] == pytest.approx(0.1)
 
 
 @pytest.mark.parametrize("normal", [(0.0, 0.0, 0.0), (1.0, 0.0), (np.nan, 0.0, 1.0)])
