@@ -65,7 +65,7 @@ class FitConfig:
     tolerance: float = 0.008
     delta_e: float = 1e-11
     normal_weight: float = 0.01
-    max_ipfo_iterations: int = 10
+    max_ipfo_iterations: int = 5
     max_rotation_step: float = 0.3
     max_revolute_step: float = 0.3
     finger_damping: float = 1e-9
