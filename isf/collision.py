@@ -206,7 +206,8 @@ class _Element:
                                process=True, validate=False)
         self.mesh = mesh
         try:
-            self.hull = np.asarray(mesh.convex_hull.vertices, dtype=float)
+            with np.errstate(invalid="ignore", divide="ignore"):  # flat sheets: zero hull volume
+                self.hull = np.asarray(mesh.convex_hull.vertices, dtype=float)
         except Exception:  # qhull fails on flat or degenerate geometry
             self.hull = np.asarray(mesh.vertices, dtype=float)
         samples, normals = _even_samples(mesh, _SAMPLE_SPACING, _MAX_SAMPLES, rng)
