@@ -2,17 +2,21 @@
 
 from __future__ import annotations
 
+import logging
 from typing import NamedTuple
 
 import numpy as np
 
 from .config import FitConfig
+from .exceptions import QPStepError
 from .finger_step import FingerStepQP
 from .gripper import Gripper, LinkKinematics
 from .palm_step import palm_step
 from .se3 import cross
 
 __all__ = ["IPFOResult", "MatchedPairs", "ipfo"]
+
+logger = logging.getLogger(__name__)
 
 
 class IPFOResult(NamedTuple):
@@ -119,7 +123,8 @@ def ipfo(pairs: MatchedPairs, T: np.ndarray, q: np.ndarray, qp: FingerStepQP | N
          config: FitConfig) -> IPFOResult:
     """Alternate palm and finger steps until E stops decreasing (Algorithm 1).
 
-    The loop stops when E per pair decreases by less than
+    A finger step OSQP cannot solve is skipped (logged as a warning): the
+    alternation then moves the palm only. The loop stops when E per pair decreases by less than
     ``config.ipfo_tolerance``, after ``config.max_ipfo_iterations`` alternations,
     or when an alternation would raise E (that alternation is undone).
 
@@ -150,7 +155,11 @@ def ipfo(pairs: MatchedPairs, T: np.ndarray, q: np.ndarray, qp: FingerStepQP | N
             step = np.where(gripper.revolute, config.max_revolute_step, np.inf)
             lower = np.minimum(np.maximum(gripper.lower - q, -step), 0.0)
             upper = np.maximum(np.minimum(gripper.upper - q, step), 0.0)
-            q_new = gripper.clip(q + qp.solve(A, b, lower, upper))
+            try:
+                q_new = gripper.clip(q + qp.solve(A, b, lower, upper))
+            except QPStepError as err:  # numerically hard step: keep the fingers, go on with the palm
+                logger.warning("finger step skipped: %s", err)
+                q_new = q
             links_new = gripper.link_kinematics(q_new)
             points_new, normals_new, offsets_new = pairs.evaluate(links_new)
         else:

@@ -148,3 +148,20 @@ def test_bad_inputs_to_fit(paper_gripper):
         isf.fit(paper_gripper, obj, np.eye(4), q=[0.01, 0.01])
     with pytest.raises(isf.ConfigError, match="levels"):
         isf.FitConfig(levels=0)
+
+
+def test_an_unsolvable_finger_step_is_skipped_not_fatal(paper_gripper, monkeypatch, caplog):
+    """If OSQP fails on a finger step the fit goes on moving the palm only, and says so."""
+    from isf.finger_step import FingerStepQP
+
+    def fail(self, A, b, lower, upper):
+        raise isf.QPStepError({"P": A.T @ A}, "primal infeasible")
+
+    monkeypatch.setattr(FingerStepQP, "solve", fail)
+    obj = isf.open_object("shape:cylinder")
+    T0 = make_transform(np.eye(3), [0.0, 0.002, -0.058])
+    with caplog.at_level("WARNING", logger="isf.ipfo"):
+        result = isf.fit(paper_gripper, obj, T0, q=[0.0095])
+    assert result.q[0] == 0.0095  # the fingers never moved
+    assert result.iterations > 0 and np.isfinite(result.mean_distance)
+    assert "finger step skipped" in caplog.text
