@@ -2,8 +2,10 @@
 
 Import this module FIRST in a benchmark script (before numpy, scipy, isf or open3d): it pins
 OpenMP/BLAS to one thread through the environment, which those libraries read only once, when
-they are loaded. A variable the caller already set is kept (so ``OMP_NUM_THREADS=2 python
-bench/...`` measures two threads), and :func:`machine_description` reports the values in force.
+they are loaded, and restricts the process to one CPU (Open3D's TBB pool ignores the
+variables; ``ISF_BENCH_CPU=none`` turns pinning off, ``ISF_BENCH_CPU=k`` picks CPU k). A
+variable the caller already set is kept (so ``OMP_NUM_THREADS=2 python bench/...`` measures two
+threads), and :func:`machine_description` reports the values in force.
 
 Helpers:
 
@@ -29,6 +31,31 @@ import sys
 THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 for _name in THREAD_VARIABLES:
     os.environ.setdefault(_name, "1")
+
+
+def _pin_to_one_cpu() -> str:
+    """Restrict this process to one CPU unless ``ISF_BENCH_CPU=none``; return a note.
+
+    The thread variables do not reach every library: Open3D 0.20 parallelises with TBB, which
+    ignores ``OMP_NUM_THREADS`` and sizes its pool from the CPU affinity mask. Pinning (before
+    those libraries load) makes "one core" true for all of them. ``ISF_BENCH_CPU=<k>`` picks
+    the CPU; by default the highest-numbered usable one.
+    """
+    choice = os.environ.get("ISF_BENCH_CPU", "")
+    if choice.lower() == "none" or not hasattr(os, "sched_setaffinity"):
+        return "not pinned to a CPU"
+    usable = sorted(os.sched_getaffinity(0))
+    if choice and (not choice.isdigit() or int(choice) not in usable):
+        raise SystemExit(f"ISF_BENCH_CPU={choice!r} is not a usable CPU: set it to one of "
+                         f"{usable}, or to 'none' to run unpinned")
+    cpu = int(choice) if choice else usable[-1]
+    os.sched_setaffinity(0, {cpu})
+    return f"pinned to CPU {cpu}"
+
+
+_USABLE_AT_START = (os.sched_getaffinity(0) if hasattr(os, "sched_getaffinity")
+                    else set(range(os.cpu_count() or 1)))
+PINNING = _pin_to_one_cpu()
 _LATE = sorted({"numpy", "scipy", "open3d"} & set(sys.modules))
 if _LATE:  # the variables above came too late for these libraries
     print(f"# warning: {_LATE} imported before bench/_common.py; thread pinning may not apply",
@@ -269,12 +296,12 @@ def machine_description() -> str:
     import isf
 
     load = " / ".join(f"{v:.2f}" for v in os.getloadavg()) if hasattr(os, "getloadavg") else "?"
-    usable = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    usable = len(_USABLE_AT_START)
     global _START_FINGERPRINT
     _START_FINGERPRINT = source_fingerprint()
     commit = _git("rev-parse", "--short", "HEAD") or "?"
     dirty = _git("status", "--porcelain", "--", "isf")
-    threads = ", ".join(f"{v}={os.environ.get(v)}" for v in THREAD_VARIABLES)
+    threads = ", ".join(f"{v}={os.environ.get(v)}" for v in THREAD_VARIABLES) + f"; {PINNING}"
     return (
         f"{datetime.datetime.now().isoformat(timespec='seconds')}; CPU: {cpu_model()}, "
         f"{os.cpu_count()} logical cores ({usable} usable); load average (1/5/15 min) at start: "

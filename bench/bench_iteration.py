@@ -181,6 +181,16 @@ def _ratio(r: dict, key: str) -> str:
             f"{_common.fmt(r['ours_cpu'] / r[key + '_cpu'])}")
 
 
+def _met(r: dict, target: float, o3d) -> str:
+    if o3d is None:
+        return "-"
+    if r["o3d_lost"] > 0:
+        return (f"not judged: Open3D lost every match in {100 * r['o3d_lost']:.0f} % of its runs "
+                "(degenerate reference)")
+    return (f"wall: {_common.verdict(r['ours'] / r['o3d_call'], target)}; CPU: "
+            f"{_common.verdict(r['ours_cpu'] / r['o3d_call_cpu'], target)}")
+
+
 def report(rows: list[dict], args, o3d) -> list[str]:
     main = [[
         r["object"], r["points"], f"{args.fits} x {r['timing'].n}", f"{r['iterations']:.1f}",
@@ -199,8 +209,7 @@ def report(rows: list[dict], args, o3d) -> list[str]:
     ratios = [[
         r["object"], _ratio(r, "nearest"), _ratio(r, "match"), _ratio(r, "o3d_call"),
         _ratio(r, "o3d_marginal"), f"<= {target:g}",
-        (f"wall: {_common.verdict(r['ours'] / r['o3d_call'], target)}; CPU: "
-         f"{_common.verdict(r['ours_cpu'] / r['o3d_call_cpu'], target)}") if o3d else "-",
+        _met(r, target, o3d),
     ] for r in rows]
     table2 = _common.markdown_table(
         ["object", "ours / nearest (wall / CPU)", "ours / match (wall / CPU)",
