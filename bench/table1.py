@@ -28,6 +28,7 @@ import trimesh  # noqa: E402
 
 import isf  # noqa: E402
 from isf import assets  # noqa: E402
+from isf.samplers import RegretSampler  # noqa: E402
 
 PAPER = {  # Table I of the paper: collision-free of 60, t_total (s), vertices
     "Hand": (53, 1.85, 1939), "Gun": (36, 2.45, 2287), "Car": (18, 1.68, 2166),
@@ -63,7 +64,8 @@ def load_scaled(name: str) -> isf.ObjectSurface:
 
 def run(name: str, gripper: isf.Gripper, repeats: int, samples: int) -> dict:
     obj = load_scaled(name)
-    runs = [isf.plan(gripper, obj, samples=samples, sampler="regret", seed=seed)
+    # the paper's sampler: k-means centres, uniformly random orientations
+    runs = [isf.plan(gripper, obj, samples=samples, sampler=RegretSampler(orientation="random"), seed=seed)
             for seed in range(repeats)]
     free = [r.stats.collision_free for r in runs]
     totals = [r.stats.total_time for r in runs]

@@ -14,10 +14,12 @@ from .registry import (
     refresh_samplers,
     register_sampler,
 )
+from .orientation import ORIENTATIONS
 from .uniform import UniformSampler
 
 __all__ = [
     "ENTRY_POINT_GROUP",
+    "ORIENTATIONS",
     "Outcome",
     "Proposal",
     "RegretSampler",

@@ -27,7 +27,8 @@ import numpy as np
 from scipy.cluster.vq import ClusterError, kmeans2, vq
 
 from ..exceptions import ConfigError
-from .base import Outcome, Proposal, Sampler, place_gripper, random_rotation
+from .base import Outcome, Proposal, Sampler, place_gripper
+from .orientation import check_orientation, initial_rotations, resolve_approach
 
 if TYPE_CHECKING:
     from ..gripper import Gripper
@@ -54,6 +55,9 @@ class RegretSampler(Sampler):
             the number of object points.
         gamma: collision penalty factor (paper: 0.2), >= 0.
         kmeans_iterations: Lloyd iterations of k-means, >= 1.
+        orientation: ``auto`` (default: the gripper's approach axis against the cluster's
+            mean outward normal when it declares one, else random), ``approach`` or
+            ``random`` (uniform on SO(3), the paper's); see :mod:`isf.samplers.orientation`.
 
     Attributes:
         centres: cluster centres, object frame, shape (K, 3), metres.
@@ -68,11 +72,14 @@ class RegretSampler(Sampler):
     n_clusters: int = 6
     gamma: float = 0.2
     kmeans_iterations: int = 10
+    orientation: str = "auto"
 
     centres: np.ndarray = field(init=False, repr=False, default=None)
     labels: np.ndarray = field(init=False, repr=False, default=None)
     regret: np.ndarray = field(init=False, repr=False, default=None)
     trials: np.ndarray = field(init=False, repr=False, default=None)
+    inward: np.ndarray = field(init=False, repr=False, default=None)
+    _approach: np.ndarray | None = field(init=False, repr=False, default=None)
 
     def __post_init__(self) -> None:
         for key in ("n_clusters", "kmeans_iterations"):
@@ -84,6 +91,7 @@ class RegretSampler(Sampler):
             raise ConfigError(f"regret: gamma must be a number >= 0, got {gamma!r}")
         if not np.isfinite(gamma) or gamma < 0:
             raise ConfigError(f"regret: gamma must be a finite number >= 0, got {gamma!r}")
+        check_orientation(self.orientation, self.name)
 
     def reset(self, obj: ObjectSurface, gripper: Gripper, rng: np.random.Generator) -> None:
         """Cluster the object's points and zero the regret table (see :meth:`Sampler.reset`).
@@ -102,6 +110,20 @@ class RegretSampler(Sampler):
         self.labels = vq(obj.points, self.centres, check_finite=False)[0]
         self.regret = np.zeros(self.n_clusters)
         self.trials = np.zeros(self.n_clusters, dtype=int)
+        self._approach = resolve_approach(self.orientation, gripper, self.name)
+        self.inward = self._inward_directions(obj)
+
+    def _inward_directions(self, obj: ObjectSurface) -> np.ndarray:
+        """Per cluster, minus its points' mean normal (or the normal nearest its centre when
+        the normals cancel, as on a thin part), shape (K, 3)."""
+        inward = np.zeros((self.n_clusters, 3))
+        np.add.at(inward, self.labels, -obj.normals)
+        norm = np.linalg.norm(inward, axis=1)
+        weak = norm < 0.3 * np.bincount(self.labels, minlength=self.n_clusters)
+        if weak.any():
+            _, nearest = obj.nearest(self.centres[weak])
+            inward[weak] = -obj.normals[nearest]
+        return inward
 
     def _kmeans(self, points: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """k-means++ centres, shape (K, 3); retries when a cluster empties."""
@@ -129,10 +151,11 @@ class RegretSampler(Sampler):
         return int(np.argmin(self.regret))
 
     def propose(self, n: int, rng: np.random.Generator) -> list[Proposal]:
-        """``n`` proposals at the best cluster centre with random orientations."""
+        """``n`` proposals at the best cluster centre, each with its own orientation."""
         _, gripper = self._require_reset()
         k = self.best_cluster()
-        T = place_gripper(gripper, self.centres[k], random_rotation(rng, size=n))
+        R = initial_rotations(self._approach, np.repeat(self.inward[k][None], n, axis=0), rng)
+        T = place_gripper(gripper, self.centres[k], R)
         record = {"cluster": k, "regret": float(self.regret[k])}
         return [Proposal(T[i], record=record) for i in range(n)]
 
