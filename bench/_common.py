@@ -143,6 +143,22 @@ class Timing:
         return f"{med} ({low}-{high}, n={self.n}{cut})"
 
 
+def plan_once(gripper, obj, samples: int, seed: int, config=None) -> dict:
+    """One ``isf.plan`` with the regret sampler: wall and CPU time, stage times, counts, fit quality."""
+    import isf
+
+    cpu = time.process_time()
+    result = isf.plan(gripper, obj, samples=samples, sampler="regret", seed=seed, config=config)
+    cpu = time.process_time() - cpu
+    s = result.stats
+    free = result.collision_free_grasps()
+    return {"t_total": s.total_time, "cpu": cpu, "setup": s.setup_time, "fit": s.fit_time,
+            "collision": s.collision_time, "free": s.collision_free, "valid": s.valid,
+            "per_free": s.total_time / s.collision_free if s.collision_free else float("inf"),
+            "error": statistics.fmean(g.fit.mean_distance for g in free) if free else float("nan"),
+            "iterations": statistics.fmean(g.fit.iterations for g in result.grasps)}
+
+
 def time_calls(fn: Callable[[], object], calls: int, warmup: int = 1) -> tuple[float, float]:
     """Median wall time and median process CPU time of one call of ``fn``, seconds.
 

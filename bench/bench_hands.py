@@ -136,23 +136,10 @@ def load_objects(quick: bool) -> tuple[list[isf.ObjectSurface], str]:
     return (objects[:1] if quick else objects), note
 
 
-def plan_once(gripper, obj, seed: int, config: isf.FitConfig | None = None) -> dict:
-    cpu = time.process_time()
-    result = isf.plan(gripper, obj, samples=SAMPLES, sampler="regret", seed=seed, config=config)
-    cpu = time.process_time() - cpu
-    s = result.stats
-    free = result.collision_free_grasps()
-    return {"t_total": s.total_time, "cpu": cpu, "free": s.collision_free, "valid": s.valid,
-            "fit": s.fit_time, "collision": s.collision_time,
-            "per_free": s.total_time / s.collision_free if s.collision_free else np.inf,
-            "error": float(np.mean([g.fit.mean_distance for g in free])) if free else np.nan,
-            "iterations": float(np.mean([g.fit.iterations for g in result.grasps]))}
-
-
 def bench(hand: str, gripper, obj, args) -> dict:
     config = None if args.finger_damping is None else isf.FitConfig(
         finger_damping=args.finger_damping)
-    runs, failed = _common.run_repeats(lambda seed: plan_once(gripper, obj, seed, config),
+    runs, failed = _common.run_repeats(lambda seed: _common.plan_once(gripper, obj, SAMPLES, seed, config),
                                        args.repeats, _common.budget_or_none(args),
                                        catch=(isf.ISFError,))
     row = _common.median_row(runs, failed, args.repeats)

@@ -22,7 +22,6 @@ import _common  # noqa: I001  (first: pins BLAS/OpenMP threads before numpy is i
 
 import time  # noqa: E402
 
-import numpy as np  # noqa: E402
 
 import isf  # noqa: E402
 from isf import assets  # noqa: E402
@@ -58,20 +57,8 @@ class Objects:
         return self.loaded[n]
 
 
-def plan_once(gripper, obj, samples: int, seed: int) -> dict:
-    cpu = time.process_time()
-    result = isf.plan(gripper, obj, samples=samples, sampler="regret", seed=seed)
-    cpu = time.process_time() - cpu
-    s = result.stats
-    free = result.collision_free_grasps()
-    return {"t_total": s.total_time, "cpu": cpu, "setup": s.setup_time, "fit": s.fit_time,
-            "collision": s.collision_time, "free": s.collision_free,
-            "per_free": s.total_time / s.collision_free if s.collision_free else np.inf,
-            "error": float(np.mean([g.fit.mean_distance for g in free])) if free else np.nan}
-
-
 def measure(gripper, obj, samples: int, args) -> dict:
-    runs, failed = _common.run_repeats(lambda seed: plan_once(gripper, obj, samples, seed),
+    runs, failed = _common.run_repeats(lambda seed: _common.plan_once(gripper, obj, samples, seed),
                                        args.repeats, _common.budget_or_none(args),
                                        catch=(isf.ISFError,))
     row = _common.median_row(runs, failed, args.repeats)
