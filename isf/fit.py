@@ -152,16 +152,13 @@ def _final_result(gripper, obj, T, q, config, status, history, started) -> FitRe
         reject_duplicates=config.reject_duplicates, normals=normals,
         max_normal_angle=config.max_normal_angle,
     )
-    src, targets = pairs.source, obj.points[pairs.target]
-    target_normals = obj.normals[pairs.target]
-    if len(src):
-        plane = np.abs(np.einsum("kj,kj->k", points[src] - targets, target_normals))
-        cosines = np.clip(-np.einsum("kj,kj->k", normals[src], target_normals), -1.0, 1.0)
-        mean_distance = float(plane.mean())
-        misalignment = float(np.arccos(cosines).mean())
-        d = plane
-        c = 1.0 - cosines
-        error = float(d @ d + config.normal_weight**2 * (c @ c))
+    matched = MatchedPairs(gripper, pairs.source, obj.points[pairs.target], obj.normals[pairs.target])
+    if len(matched):
+        points_g, normals_g, _ = matched.evaluate(gripper.link_kinematics(q))
+        d, c = matched.residuals(T, points_g, normals_g)  # c = (R n^p)^T n^q + 1
+        mean_distance = float(np.abs(d).mean())
+        misalignment = float(np.arccos(np.clip(1.0 - c, -1.0, 1.0)).mean())
+        error = matched.error(T, points_g, normals_g, config.normal_weight)
     else:
         mean_distance = misalignment = error = float("inf")
     near, _ = obj.nearest(points)
@@ -172,8 +169,9 @@ def _final_result(gripper, obj, T, q, config, status, history, started) -> FitRe
     }
     return FitResult(
         T_object_gripper=T, q=q.copy(), joints=gripper.joints(q), mean_distance=mean_distance,
-        normal_misalignment=misalignment, error=error, n_pairs=len(src),
-        contact_points=points[src], object_points=targets, surface_contact=surface_contact,
+        normal_misalignment=misalignment, error=error, n_pairs=len(matched),
+        contact_points=points[matched.point_index], object_points=matched.targets,
+        surface_contact=surface_contact,
         iterations=len(history), status=status, history=tuple(history),
         time=time.perf_counter() - started,
     )
