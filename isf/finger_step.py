@@ -17,13 +17,17 @@ parallel gripper this is the paper's eq. (11) and its solution is (12)-(13).
 
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 import osqp
 import scipy.sparse as sp
 
 from .exceptions import QPStepError
 
-__all__ = ["FingerStepQP"]
+__all__ = ["FingerStepQP", "finger_steps"]
+
+logger = logging.getLogger(__name__)
 
 
 class FingerStepQP:
@@ -65,9 +69,14 @@ class FingerStepQP:
         Raises:
             QPStepError: OSQP did not reach ``solved``.
         """
-        H = 2.0 * (A.T @ A)
+        return self.solve_normal(A.T @ A, A.T @ b, lower, upper)
+
+    def solve_normal(self, AtA: np.ndarray, Atb: np.ndarray, lower: np.ndarray,
+                     upper: np.ndarray) -> np.ndarray:
+        """The same QP given its normal equations ``A^T A`` (n, n) and ``A^T b`` (n,)."""
+        H = 2.0 * AtA
         H[np.diag_indices(self.n)] += 2.0 * self.damping
-        g = -2.0 * (A.T @ b)
+        g = -2.0 * Atb
         s = self._solver
         s.update(Px=H[self._rows, self._cols], q=g, l=lower, u=upper)
         s.warm_start(x=np.clip(self._x, lower, upper))
@@ -78,3 +87,47 @@ class FingerStepQP:
             raise QPStepError({"P": H, "q": g, "lb": lower, "ub": upper}, res.info.status)
         self._x = np.clip(res.x, lower, upper)
         return self._x.copy()
+
+
+def finger_steps(
+    AtA: np.ndarray,
+    Atb: np.ndarray,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    damping: float,
+    qps: list[FingerStepQP],
+) -> tuple[np.ndarray, np.ndarray]:
+    """Solve the finger QPs of many fits at once.
+
+    The QP is strictly convex, so when the minimiser of its objective lies inside the
+    bounds it *is* the QP's solution: that is computed for all fits with one batched
+    linear solve. With one joint the bounded solution is that minimiser clipped (the
+    paper's eq. 12-13). Only multi-joint fits whose minimiser leaves the bounds go to
+    their OSQP problem (``qps[b]``, set up once per fit, updated and warm-started).
+
+    Args:
+        AtA: normal matrices ``A^T A``, shape (B, n, n).
+        Atb: ``A^T b``, shape (B, n).
+        lower, upper: bounds on ``dq``, shape (B, n), ``lower <= 0 <= upper``.
+        damping: ``lambda``, the Tikhonov weight on ``dq``.
+        qps: one :class:`FingerStepQP` per fit, length B.
+
+    Returns:
+        ``dq`` (B, n) and a mask (B,) of fits whose QP OSQP could not solve (their ``dq`` is 0).
+    """
+    n = AtA.shape[1]
+    H = AtA + damping * np.eye(n)
+    # A relative ridge only for singular systems; it cannot change a well-posed answer.
+    ridge = 1e-14 * np.maximum(np.trace(H, axis1=1, axis2=2), 1e-300)
+    dq = np.linalg.solve(H + ridge[:, None, None] * np.eye(n), Atb[:, :, None])[:, :, 0]
+    failed = np.zeros(len(dq), dtype=bool)
+    if n == 1:
+        return np.clip(dq, lower, upper), failed
+    outside = np.flatnonzero(np.any((dq < lower) | (dq > upper), axis=1))
+    for b in outside.tolist():
+        try:
+            dq[b] = qps[b].solve_normal(AtA[b], Atb[b], lower[b], upper[b])
+        except QPStepError as err:
+            logger.warning("finger step skipped: %s", err)
+            dq[b], failed[b] = 0.0, True
+    return dq, failed

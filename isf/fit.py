@@ -1,32 +1,22 @@
-"""Iterative surface fitting (paper Algorithm 2): :func:`fit`.
+"""Iterative surface fitting (paper Algorithm 2): :func:`fit` and :func:`fit_many`.
 
-The stop rule
--------------
-On pyramid level ``l`` the loop keeps ``e_s = ||S^f - S^f_0||``, the
-displacement of the level's contact points from where they stood when the level
-began (cumulative, Frobenius norm over the points), and ``eta = e_s / e_s,prev``.
-It stops when ``eta`` lies in ``[1 - eps_l, 1 + eps_l]`` with ``eps_l = 2**l eps0``
-(the total displacement stopped growing by more than ``eps_l`` relatively), or
-after ``I_l = I0 / 2**l`` iterations. A gripper that does not move at all
-(``e_s = 0``) has converged too.
+Both run the lockstep engine (:class:`isf.lockstep.LockstepFitter`, where the stop rule
+is documented); :func:`fit` is one fit alone, :func:`fit_many` advances many together
+(the same results as one :func:`fit` each, in a fraction of the time).
 """
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 
 from .config import FitConfig
-from .correspondence import match
 from .exceptions import InvalidInputError
-from .finger_step import FingerStepQP
 from .gripper import Gripper
-from .ipfo import MatchedPairs, ipfo
+from .lockstep import LockstepFitter
 from .object_surface import ObjectSurface
-from .result import FitResult, FitStatus, IterationRecord
+from .result import FitResult
 
-__all__ = ["fit"]
+__all__ = ["fit", "fit_many"]
 
 
 def fit(
@@ -53,48 +43,52 @@ def fit(
         InvalidInputError: the pose is not a rigid transform, or ``q`` has the
             wrong size or lies outside the joint limits.
     """
-    started = time.perf_counter()
-    config = FitConfig() if config is None else config
-    T = _check_pose(T_object_gripper)
-    q = _check_joints(gripper, q)
-    qp = FingerStepQP(gripper.n_joints, config.finger_damping) if gripper.n_joints else None
+    return fit_many(gripper, obj, np.asarray(T_object_gripper, dtype=float)[None],
+                    None if q is None else np.asarray(q, dtype=float)[None], config)[0]
 
-    history: list[IterationRecord] = []
-    status = FitStatus.MAX_ITERATIONS
-    for level in reversed(range(config.levels)):
-        index = np.flatnonzero(gripper.level_mask(level))
-        max_iterations = max(1, config.max_iterations // 2**level)
-        eps = 2**level * config.tolerance
-        start, current_normals = _object_points(gripper, T, q, index)
-        current = start
-        displacement, eta, iteration = np.inf, 0.0, 0
-        while not (1.0 - eps <= eta <= 1.0 + eps) and iteration < max_iterations:
-            iteration += 1
-            previous = displacement
-            pairs = match(
-                obj, current, outlier_factor=config.outlier_factor,
-                outlier_floor=config.outlier_floor, reject_duplicates=config.reject_duplicates,
-                normals=current_normals, max_normal_angle=config.max_normal_angle,
-            )
-            if len(pairs.source) < config.min_pairs:
-                status = FitStatus.LOST_CONTACT
-                break
-            matched = MatchedPairs(gripper, index[pairs.source], obj.points[pairs.target],
-                                   obj.normals[pairs.target])
-            step = ipfo(matched, T, q, qp, config)
-            T, q = step.T_object_gripper, step.q
-            current, current_normals = _object_points(gripper, T, q, index)
-            displacement = float(np.linalg.norm(current - start))
-            eta = 1.0 if displacement <= 1e-12 else displacement / previous
-            history.append(IterationRecord(
-                level=level, iteration=iteration, mean_distance=step.mean_distance,
-                error=step.error, n_pairs=len(matched), q=q.copy(), ipfo_errors=step.errors,
-            ))
-        if status is FitStatus.LOST_CONTACT:
-            break
-        if level == 0 and 1.0 - eps <= eta <= 1.0 + eps:
-            status = FitStatus.CONVERGED
-    return _final_result(gripper, obj, T, q, config, status, history, started)
+
+def fit_many(
+    gripper: Gripper,
+    obj: ObjectSurface,
+    T_object_gripper: np.ndarray,
+    q: np.ndarray | None = None,
+    config: FitConfig | None = None,
+) -> list[FitResult]:
+    """Fit the gripper from B initial states at once (each fit as :func:`fit` would).
+
+    Args:
+        gripper: the gripper.
+        obj: the object surface.
+        T_object_gripper: initial palm poses, (B, 4, 4), metres.
+        q: initial joints, (B, n_joints); default ``gripper.q_initial`` for every fit.
+        config: fit parameters; default the paper's.
+
+    Returns:
+        one :class:`FitResult` per initial state, in order.
+
+    Raises:
+        InvalidInputError: a pose is not a rigid transform, or a joint vector has the
+            wrong size or lies outside the joint limits.
+    """
+    T_batch = np.asarray(T_object_gripper, dtype=float)
+    if T_batch.ndim != 3:
+        T_batch = T_batch[None] if T_batch.ndim == 2 else T_batch
+    poses = [_check_pose(T) for T in T_batch]
+    if q is None:
+        joints = [_check_joints(gripper, None) for _ in poses]
+    else:
+        q = np.asarray(q, dtype=float)
+        q = q.reshape(len(poses), -1) if q.size == len(poses) * gripper.n_joints else q
+        if len(q) != len(poses):
+            raise InvalidInputError(f"got {len(poses)} poses but {len(q)} joint vectors: pass one per pose")
+        joints = [_check_joints(gripper, qb) for qb in q]
+    fitter = LockstepFitter(gripper, obj, config)
+    for index, (T, qb) in enumerate(zip(poses, joints)):
+        fitter.add(index, T, qb)
+    results: dict[int, FitResult] = {}
+    while fitter.n_active:
+        results.update(fitter.step())
+    return [results[i] for i in range(len(poses))]
 
 
 def _check_pose(T: np.ndarray) -> np.ndarray:
@@ -132,46 +126,3 @@ def _check_joints(gripper: Gripper, q: np.ndarray | None) -> np.ndarray:
     if outside:
         raise InvalidInputError(f"initial joints outside their limits: {', '.join(outside)}")
     return gripper.clip(q)
-
-
-def _object_points(gripper: Gripper, T: np.ndarray, q: np.ndarray,
-                   index: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Contact points ``index`` and their normals at ``(T, q)`` in the object frame, each (len(index), 3)."""
-    points, normals = gripper.contact_points(q, index)
-    return points @ T[:3, :3].T + T[:3, 3], normals @ T[:3, :3].T
-
-
-def _final_result(gripper, obj, T, q, config, status, history, started) -> FitResult:
-    """Score the final state on the finest level with fresh correspondences."""
-    points, normals = gripper.contact_points(q)
-    R, t = T[:3, :3], T[:3, 3]
-    points = points @ R.T + t
-    normals = normals @ R.T
-    pairs = match(
-        obj, points, outlier_factor=config.outlier_factor, outlier_floor=config.outlier_floor,
-        reject_duplicates=config.reject_duplicates, normals=normals,
-        max_normal_angle=config.max_normal_angle,
-    )
-    matched = MatchedPairs(gripper, pairs.source, obj.points[pairs.target], obj.normals[pairs.target])
-    if len(matched):
-        points_g, normals_g, _ = matched.evaluate(gripper.link_kinematics(q))
-        d, c = matched.residuals(T, points_g, normals_g)  # c = (R n^p)^T n^q + 1
-        mean_distance = float(np.abs(d).mean())
-        misalignment = float(np.arccos(np.clip(1.0 - c, -1.0, 1.0)).mean())
-        error = matched.error(T, points_g, normals_g, config.normal_weight)
-    else:
-        mean_distance = misalignment = error = float("inf")
-    near, _ = obj.nearest(points)
-    touching = near <= config.contact_distance
-    surface_contact = {
-        s.name: float(touching[gripper.point_surface == k].mean())
-        for k, s in enumerate(gripper.surfaces)
-    }
-    return FitResult(
-        T_object_gripper=T, q=q.copy(), joints=gripper.joints(q), mean_distance=mean_distance,
-        normal_misalignment=misalignment, error=error, n_pairs=len(matched),
-        contact_points=points[matched.point_index], object_points=matched.targets,
-        surface_contact=surface_contact,
-        iterations=len(history), status=status, history=tuple(history),
-        time=time.perf_counter() - started,
-    )

@@ -206,20 +206,28 @@ class Gripper:
         return poses
 
     def link_kinematics(self, q: np.ndarray) -> LinkKinematics:
-        """Poses and Jacobians of the contact links at ``q`` (one Pinocchio pass)."""
+        """Poses and Jacobians of the contact links at ``q`` (n_joints,) (one Pinocchio pass)."""
+        return LinkKinematics(*(a[0] for a in self.link_kinematics_many(np.asarray(q)[None])))
+
+    def link_kinematics_many(self, Q: np.ndarray) -> LinkKinematics:
+        """:meth:`link_kinematics` of B joint vectors ``Q`` (B, n_joints): every array gains a
+        leading axis of length B."""
         model, data = self.model, self._data
-        pin.computeJointJacobians(model, data, np.asarray(q, dtype=float))
-        pin.updateFramePlacements(model, data)
+        Q = np.asarray(Q, dtype=float).reshape(-1, model.nq)
         n_links = len(self._link_frames)
-        R = np.empty((n_links, 3, 3))
-        p = np.empty((n_links, 3))
-        J = np.empty((n_links, 6, model.nv))
-        for k, fid in enumerate(self._link_frames.tolist()):
-            R[k] = data.oMf[fid].rotation
-            p[k] = data.oMf[fid].translation
-            # eigenpy returns a (6,) vector when nv == 1
-            J[k] = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED).reshape(6, -1)
-        return LinkKinematics(R, p, J[:, :3], J[:, 3:])
+        R = np.empty((len(Q), n_links, 3, 3))
+        p = np.empty((len(Q), n_links, 3))
+        J = np.empty((len(Q), n_links, 6, model.nv))
+        frames = self._link_frames.tolist()
+        for b, q in enumerate(Q):
+            pin.computeJointJacobians(model, data, q)
+            pin.updateFramePlacements(model, data)
+            for k, fid in enumerate(frames):
+                placement = data.oMf[fid]
+                R[b, k] = placement.rotation
+                p[b, k] = placement.translation
+                J[b, k] = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED).reshape(6, -1)
+        return LinkKinematics(R, p, J[:, :, :3], J[:, :, 3:])
 
     def contact_kinematics(self, q: np.ndarray, mask: np.ndarray | None = None) -> ContactKinematics:
         """Contact points, normals and their Jacobians at ``q``, gripper frame.

@@ -1,100 +1,96 @@
-"""Iterative palm-finger optimisation (paper Algorithm 1), for fixed correspondences."""
+"""Iterative palm-finger optimisation (paper Algorithm 1) for fixed correspondences, many fits at once.
+
+Every fit of a batch runs its own Algorithm 1 (its own stop decisions); the arithmetic of
+all fits is done together: one batched 6x6 palm solve and one batched joint solve per
+alternation. The pairs of all fits are stored back to back (:class:`PairBatch`, which
+also evaluates them pair by pair); the alternations work on their moments
+(:class:`isf.moments.PairMoments`), so an alternation costs the same for 50 pairs or 5000.
+"""
 
 from __future__ import annotations
 
-import logging
 from typing import NamedTuple
 
 import numpy as np
 
 from .config import FitConfig
-from .exceptions import QPStepError
-from .finger_step import FingerStepQP
+from .finger_step import FingerStepQP, finger_steps
 from .gripper import Gripper, LinkKinematics
-from .palm_step import palm_step
+from .moments import PairMoments
+from .palm_step import palm_motions
 from .se3 import cross
+from .segments import Segments
 
-__all__ = ["IPFOResult", "MatchedPairs", "ipfo"]
-
-logger = logging.getLogger(__name__)
-
-
-class IPFOResult(NamedTuple):
-    """Outcome of one IPFO run.
-
-    Attributes:
-        T_object_gripper: palm pose, (4, 4).
-        q: joint vector, (n_joints,).
-        error: total fitting error E at the result, m^2 (eq. 9a).
-        mean_distance: mean |point-to-plane distance| of the pairs at the result, metres.
-        iterations: palm/finger alternations kept.
-        errors: E after each kept alternation (the paper's Fig. 5b), m^2.
-    """
-
-    T_object_gripper: np.ndarray
-    q: np.ndarray
-    error: float
-    mean_distance: float
-    iterations: int
-    errors: tuple[float, ...]
+__all__ = ["IPFOResult", "PairBatch", "ipfo"]
 
 
-class MatchedPairs:
-    """Matched (contact point, object point) pairs, grouped by the contact point's link.
+def _rotate(R: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Row-wise ``R_k v_k`` for R (K, 3, 3) and v (K, 3), (K, 3)."""
+    return np.einsum("kij,kj->ki", R, v)
 
-    Grouping lets every per-link quantity (pose, Jacobian) act on a block of
-    points with one matrix product instead of per-point tensors.
+
+class PairBatch:
+    """Matched (contact point, object point) pairs of B fits, stored fit after fit.
 
     Args:
         gripper: the gripper.
+        segments: the fit of each pair (pairs grouped by fit).
         point_index: indices of the matched contact points into the gripper's points, (K,).
         targets: matched object points, object frame, (K, 3), metres.
         target_normals: object normals at the targets, (K, 3).
     """
 
-    def __init__(self, gripper: Gripper, point_index, targets, target_normals):
-        order = np.argsort(gripper.point_link[point_index], kind="stable")
+    def __init__(self, gripper: Gripper, segments: Segments, point_index, targets, target_normals):
         self.gripper = gripper
-        self.point_index = np.asarray(point_index)[order]
-        self.targets = np.asarray(targets)[order]
-        self.target_normals = np.asarray(target_normals)[order]
+        self.segments = segments
+        self.point_index = np.asarray(point_index)
+        self.targets = np.asarray(targets, dtype=float)
+        self.target_normals = np.asarray(target_normals, dtype=float)
+        self._link = gripper.point_link[self.point_index]
         self._points = gripper.points_link[self.point_index]
         self._normals = gripper.normals_link[self.point_index]
-        links = gripper.point_link[self.point_index]
-        edges = np.flatnonzero(np.diff(links)) + 1
-        starts = np.r_[0, edges]
-        stops = np.r_[edges, len(links)]
-        self._groups = [(int(links[a]), slice(int(a), int(b))) for a, b in zip(starts, stops) if b > a]
 
     def __len__(self) -> int:
         return len(self.point_index)
 
     def evaluate(self, links: LinkKinematics) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Contact points, normals and offsets from their link origins, gripper frame, each (K, 3)."""
-        offsets = np.empty_like(self._points)
-        normals = np.empty_like(self._normals)
-        points = np.empty_like(self._points)
-        for k, s in self._groups:
-            R = links.rotations[k]
-            offsets[s] = self._points[s] @ R.T
-            normals[s] = self._normals[s] @ R.T
-            points[s] = offsets[s] + links.positions[k]
-        return points, normals, offsets
+        """Contact points, normals and offsets from their link origins, gripper frame, each (K, 3).
+
+        Args:
+            links: kinematics of the B fits (arrays with a leading fit axis, see
+                :meth:`Gripper.link_kinematics_many`).
+        """
+        fit, link = self.segments.ids, self._link
+        R = links.rotations[fit, link]
+        offsets = _rotate(R, self._points)
+        return offsets + links.positions[fit, link], _rotate(R, self._normals), offsets
+
+    def to_object(self, T: np.ndarray, points: np.ndarray, normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Gripper-frame points and normals (K, 3) moved by each pair's palm pose ``T`` (B, 4, 4)."""
+        Tk = T[self.segments.ids]
+        R = Tk[:, :3, :3]
+        return _rotate(R, points) + Tk[:, :3, 3], _rotate(R, normals)
 
     def residuals(self, T: np.ndarray, points: np.ndarray, normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Point-to-plane distances (K,) in metres and normal terms ``(R n^p)^T n^q + 1`` (K,) at palm pose ``T``."""
-        R, t = T[:3, :3], T[:3, 3]
-        d = np.einsum("kj,kj->k", points @ R.T + t - self.targets, self.target_normals)
-        c = np.einsum("kj,kj->k", normals @ R.T, self.target_normals) + 1.0
+        """Point-to-plane distances (K,) in metres and normal terms ``(R n^p)^T n^q + 1`` (K,).
+
+        Args:
+            T: palm poses ``T_object_gripper`` of the B fits, (B, 4, 4).
+            points, normals: gripper-frame contact points and normals, (K, 3).
+        """
+        p, n = self.to_object(T, points, normals)
+        d = np.einsum("kj,kj->k", p - self.targets, self.target_normals)
+        c = np.einsum("kj,kj->k", n, self.target_normals) + 1.0
         return d, c
 
-    def error(self, T: np.ndarray, points: np.ndarray, normals: np.ndarray, normal_weight: float) -> float:
-        """``E = E_p + alpha^2 E_n`` (eq. 7-9) at palm pose ``T`` for gripper-frame points/normals, m^2."""
+    def errors(self, T: np.ndarray, points: np.ndarray, normals: np.ndarray, normal_weight: float) -> np.ndarray:
+        """``E = E_p + alpha^2 E_n`` (eq. 7-9) of each fit, (B,), m^2."""
         d, c = self.residuals(T, points, normals)
-        return float(d @ d + normal_weight**2 * (c @ c))
+        return self.segments.sum(d * d + normal_weight**2 * (c * c))
 
     def finger_rows(self, T, points, normals, offsets, links: LinkKinematics, normal_weight: float):
-        """Rows ``A`` (K', n) and right-hand side ``b`` (K',) of the finger least squares.
+        """Rows of the finger least squares: ``A`` (K, n), ``b`` (K,), and the normal rows
+        ``An`` (K, n), ``bn`` (K,) (None when alpha is 0 or no joint turns a link).
 
         With the palm at ``T`` fixed, moving the joints by ``dq`` moves point ``i``
         (on link ``k``, offset ``r_i`` from its origin) by ``R (Jv_k + Jw_k x r_i) dq``,
@@ -103,75 +99,107 @@ class MatchedPairs:
         Joints that turn links add alpha-weighted normal rows
         ``alpha (n_i x m_i)^T Jw_k``, ``-alpha (n_i^T m_i + 1)``.
         """
-        R, t = T[:3, :3], T[:3, 3]
-        m = self.target_normals @ R
-        n_joints = links.J_linear.shape[2]
-        A = np.empty((len(self), n_joints))
-        for k, s in self._groups:
-            A[s] = m[s] @ links.J_linear[k] + cross(offsets[s], m[s]) @ links.J_angular[k]
-        b = -np.einsum("kj,kj->k", points @ R.T + t - self.targets, self.target_normals)
+        fit, link = self.segments.ids, self._link
+        R = T[fit, :3, :3]
+        m = np.einsum("kji,kj->ki", R, self.target_normals)
+        Jv, Jw = links.J_linear[fit, link], links.J_angular[fit, link]
+        A = np.einsum("kj,kjn->kn", m, Jv) + np.einsum("kj,kjn->kn", cross(offsets, m), Jw)
+        b = -self.residuals(T, points, normals)[0]
         if normal_weight > 0.0 and np.any(links.J_angular):
-            An = np.empty((len(self), n_joints))
-            for k, s in self._groups:
-                An[s] = normal_weight * (cross(normals[s], m[s]) @ links.J_angular[k])
+            An = normal_weight * np.einsum("kj,kjn->kn", cross(normals, m), Jw)
             bn = -normal_weight * (np.einsum("kj,kj->k", normals, m) + 1.0)
-            A, b = np.concatenate([A, An]), np.concatenate([b, bn])
-        return A, b
+            return A, b, An, bn
+        return A, b, None, None
+
+    def finger_system(self, T, points, normals, offsets, links, normal_weight):
+        """Normal equations of each fit's finger least squares: ``A^T A`` (B, n, n), ``A^T b`` (B, n)."""
+        A, b, An, bn = self.finger_rows(T, points, normals, offsets, links, normal_weight)
+        AtA = self.segments.sum(A[:, :, None] * A[:, None, :])
+        Atb = self.segments.sum(A * b[:, None])
+        if An is not None:
+            AtA += self.segments.sum(An[:, :, None] * An[:, None, :])
+            Atb += self.segments.sum(An * bn[:, None])
+        return AtA, Atb
 
 
-def ipfo(pairs: MatchedPairs, T: np.ndarray, q: np.ndarray, qp: FingerStepQP | None,
+class IPFOResult(NamedTuple):
+    """Outcome of IPFO for B fits.
+
+    Attributes:
+        T_object_gripper: palm poses, (B, 4, 4).
+        q: joint vectors, (B, n_joints).
+        error: total fitting error E at the result, (B,), m^2 (eq. 9a).
+        mean_distance: mean |point-to-plane distance| of each fit's pairs at the result, (B,), metres.
+        errors: per fit, E after each kept alternation (the paper's Fig. 5b), m^2.
+        links: contact-link kinematics at the resulting joints (leading fit axis).
+    """
+
+    T_object_gripper: np.ndarray
+    q: np.ndarray
+    error: np.ndarray
+    mean_distance: np.ndarray
+    errors: list[tuple[float, ...]]
+    links: LinkKinematics
+
+
+def _select(mask: np.ndarray, new, old):
+    """Per fit (mask (B,)), the new arrays where set, else the old (leading fit axis)."""
+    values = [np.where(mask.reshape((-1,) + (1,) * (o.ndim - 1)), n, o) for n, o in zip(new, old)]
+    return type(old)(*values) if hasattr(old, "_fields") else tuple(values)
+
+
+def ipfo(pairs: PairBatch, T: np.ndarray, q: np.ndarray, qps: list[FingerStepQP] | None,
          config: FitConfig) -> IPFOResult:
-    """Alternate palm and finger steps until E stops decreasing (Algorithm 1).
+    """Alternate palm and finger steps until E stops decreasing (Algorithm 1), for each fit.
 
-    A finger step OSQP cannot solve is skipped (logged as a warning): the
-    alternation then moves the palm only. The loop stops when E per pair decreases by less than
-    ``config.ipfo_tolerance``, after ``config.max_ipfo_iterations`` alternations,
-    or when an alternation would raise E (that alternation is undone).
+    A fit stops when its E per pair decreases by less than ``config.ipfo_tolerance``,
+    after ``config.max_ipfo_iterations`` alternations, or when an alternation would
+    raise its E (that alternation is undone). A finger step OSQP cannot solve is
+    skipped (logged as a warning): that alternation moves the palm only.
 
     Args:
-        pairs: the matched pairs (fixed during IPFO).
-        T: initial ``T_object_gripper``, (4, 4).
-        q: initial joints, (n_joints,).
-        qp: the finger-step QP (reused across calls), or None for a gripper without joints.
+        pairs: the matched pairs of B fits (fixed during IPFO).
+        T: initial ``T_object_gripper`` of each fit, (B, 4, 4).
+        q: initial joints, (B, n_joints).
+        qps: one finger-step QP per fit (reused across calls), or None for a gripper without joints.
         config: fit parameters.
     """
-    gripper = pairs.gripper
+    gripper, seg = pairs.gripper, pairs.segments
     alpha = config.normal_weight
-    threshold = config.ipfo_tolerance * len(pairs)
-    move_fingers = qp is not None and not config.lock_fingers
-    links = gripper.link_kinematics(q)
-    points, normals, offsets = pairs.evaluate(links)
-    error = pairs.error(T, points, normals, alpha)
-    errors = []
-    while len(errors) < config.max_ipfo_iterations:
-        R, t = T[:3, :3], T[:3, 3]
-        T_new = palm_step(
-            points @ R.T + t, normals @ R.T, pairs.targets, pairs.target_normals,
-            normal_weight=alpha, max_rotation=config.max_rotation_step,
-        ) @ T
-        q_new = q
+    n_fits = len(seg)
+    moments = PairMoments(seg.ids, gripper.point_link[pairs.point_index], gripper.points_link[pairs.point_index],
+                          gripper.normals_link[pairs.point_index], pairs.targets, pairs.target_normals, n_fits)
+    threshold = config.ipfo_tolerance * seg.counts
+    move_fingers = qps is not None and not config.lock_fingers
+    step = np.where(gripper.revolute, config.max_revolute_step, np.inf)
+    T, q = T.copy(), q.copy()
+    links = gripper.link_kinematics_many(q)
+    error = moments.errors(T, links, alpha)
+    errors: list[list[float]] = [[] for _ in range(n_fits)]
+    active = np.ones(n_fits, dtype=bool)
+    for _ in range(config.max_ipfo_iterations):
+        H, g, centre = moments.palm_system(T, links, alpha)
+        T_new = palm_motions(H, g, centre, config.max_rotation_step) @ T
+        q_new, links_new = q, links
         if move_fingers:
-            A, b = pairs.finger_rows(T_new, points, normals, offsets, links, alpha)
-            step = np.where(gripper.revolute, config.max_revolute_step, np.inf)
+            AtA, Atb = moments.finger_system(T_new, links, alpha)
             lower = np.minimum(np.maximum(gripper.lower - q, -step), 0.0)
             upper = np.maximum(np.minimum(gripper.upper - q, step), 0.0)
-            try:
-                q_new = gripper.clip(q + qp.solve(A, b, lower, upper))
-            except QPStepError as err:  # numerically hard step: keep the fingers, go on with the palm
-                logger.warning("finger step skipped: %s", err)
-                q_new = q
-            links_new = gripper.link_kinematics(q_new)
-            points_new, normals_new, offsets_new = pairs.evaluate(links_new)
-        else:
-            links_new, points_new, normals_new, offsets_new = links, points, normals, offsets
-        error_new = pairs.error(T_new, points_new, normals_new, alpha)
-        if error_new > error:
-            break
+            dq, _ = finger_steps(AtA, Atb, lower, upper, config.finger_damping, qps)
+            q_new = gripper.clip(q + dq)
+            links_new = gripper.link_kinematics_many(q_new)
+        error_new = moments.errors(T_new, links_new, alpha)
+        accept = active & (error_new <= error)
         decrease = error - error_new
-        T, q, error = T_new, q_new, error_new
-        links, points, normals, offsets = links_new, points_new, normals_new, offsets_new
-        errors.append(error)
-        if decrease <= threshold:
+        T = np.where(accept[:, None, None], T_new, T)
+        q = np.where(accept[:, None], q_new, q)
+        links = _select(accept, links_new, links)
+        error = np.where(accept, error_new, error)
+        for b in np.flatnonzero(accept).tolist():
+            errors[b].append(float(error[b]))
+        active = accept & (decrease > threshold)
+        if not active.any():
             break
-    mean_distance = float(np.mean(np.abs(pairs.residuals(T, points, normals)[0])))
-    return IPFOResult(T, q, error, mean_distance, len(errors), tuple(errors))
+    d = pairs.residuals(T, *pairs.evaluate(links)[:2])[0]
+    mean_distance = seg.mean(np.abs(d))
+    return IPFOResult(T, q, error, mean_distance, [tuple(e) for e in errors], links)

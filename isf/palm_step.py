@@ -1,12 +1,84 @@
-"""The IPFO palm step: closed-form least squares for the palm motion (paper eq. 5, 8, 10)."""
+"""The IPFO palm step: closed-form least squares for the palm motion (paper eq. 5, 8, 10).
+
+:func:`palm_steps` solves the step of many fits at once (one 6x6 system per fit, the
+pairs of all fits concatenated); :func:`palm_step` is the single-fit form.
+"""
 
 from __future__ import annotations
 
 import numpy as np
 
-from .se3 import cross, exp_so3
+from .se3 import cross, exp_so3_many
+from .segments import Segments
 
-__all__ = ["palm_step"]
+__all__ = ["palm_motions", "palm_step", "palm_steps"]
+
+
+def palm_steps(
+    points: np.ndarray,
+    normals: np.ndarray,
+    targets: np.ndarray,
+    target_normals: np.ndarray,
+    segments: Segments,
+    *,
+    normal_weight: float,
+    max_rotation: float,
+) -> np.ndarray:
+    """Palm motions that best fit matched contact points onto the object, one per fit.
+
+    Solves :math:`x = (\\tilde A^T \\tilde A)^{-1} \\tilde A^T \\tilde b` (eq. 10) with
+    point-to-plane rows :math:`a_i = [(p_i \\times n^q_i)^T, (n^q_i)^T]`,
+    :math:`b_i = (q_i - p_i)^T n^q_i` (eq. 5) and normal-alignment rows
+    :math:`[\\alpha (n^p_i \\times n^q_i)^T, 0]`, :math:`-\\alpha (n^p_i)^T n^q_i - \\alpha`
+    (from eq. 8), linearised as :math:`R \\approx I + \\hat r`. Points are taken
+    relative to their fit's centroid, which leaves the minimiser unchanged and keeps the
+    normal equations well conditioned. A rotation larger than ``max_rotation`` is
+    scaled down (with its translation) to that angle.
+
+    Args:
+        points: contact points ``p_i``, object frame, shape (K, 3), metres.
+        normals: their outward normals ``n^p_i``, object frame, shape (K, 3).
+        targets: matched object points ``q_i``, shape (K, 3), metres.
+        target_normals: object normals ``n^q_i`` at the targets, shape (K, 3).
+        segments: which fit each pair belongs to (pairs grouped by fit, B fits).
+        normal_weight: ``alpha``, metres (0 disables the normal rows).
+        max_rotation: largest rotation of one step, radians.
+
+    Returns:
+        ``T_delta``, shape (B, 4, 4): the motions to apply on the left of each ``T_object_gripper``.
+    """
+    centre = segments.mean(points)
+    offsets = points - centre[segments.ids]
+    a = np.concatenate([cross(offsets, target_normals), target_normals], axis=1)
+    b = np.einsum("ij,ij->i", targets - points, target_normals)
+    H = segments.sum(a[:, :, None] * a[:, None, :])
+    g = segments.sum(a * b[:, None])
+    if normal_weight > 0.0:
+        an = normal_weight * cross(normals, target_normals)
+        bn = -normal_weight * (np.einsum("ij,ij->i", normals, target_normals) + 1.0)
+        H[:, :3, :3] += segments.sum(an[:, :, None] * an[:, None, :])
+        g[:, :3] += segments.sum(an * bn[:, None])
+    return palm_motions(H, g, centre, max_rotation)
+
+
+def palm_motions(H: np.ndarray, g: np.ndarray, centre: np.ndarray, max_rotation: float) -> np.ndarray:
+    """Solve the palm normal equations ``H x = g`` (B, 6, 6), (B, 6) for the twists
+    ``x = [r, u]`` about the centroids ``centre`` (B, 3); returns ``T_delta`` (B, 4, 4).
+
+    A rotation larger than ``max_rotation`` (radians) is scaled down, with its translation.
+    """
+    # A tiny ridge keeps directions the surfaces leave free (a pad sliding on a
+    # plane) at zero motion instead of letting round-off move them.
+    ridge = 1e-12 * np.maximum(np.trace(H, axis1=1, axis2=2), 1e-300)
+    x = np.linalg.solve(H + ridge[:, None, None] * np.eye(6), g[:, :, None])[:, :, 0]
+    angle = np.linalg.norm(x[:, :3], axis=1)
+    x *= np.minimum(1.0, max_rotation / np.maximum(angle, 1e-300))[:, None]
+    R = exp_so3_many(x[:, :3])
+    T = np.zeros((len(x), 4, 4))
+    T[:, :3, :3] = R
+    T[:, :3, 3] = centre + x[:, 3:] - np.einsum("bij,bj->bi", R, centre)
+    T[:, 3, 3] = 1.0
+    return T
 
 
 def palm_step(
@@ -18,48 +90,7 @@ def palm_step(
     normal_weight: float,
     max_rotation: float,
 ) -> np.ndarray:
-    """Palm motion that best fits matched contact points onto the object.
-
-    Solves :math:`x = (\\tilde A^T \\tilde A)^{-1} \\tilde A^T \\tilde b` (eq. 10) with
-    point-to-plane rows :math:`a_i = [(p_i \\times n^q_i)^T, (n^q_i)^T]`,
-    :math:`b_i = (q_i - p_i)^T n^q_i` (eq. 5) and normal-alignment rows
-    :math:`[\\alpha (n^p_i \\times n^q_i)^T, 0]`, :math:`-\\alpha (n^p_i)^T n^q_i - \\alpha`
-    (from eq. 8), linearised as :math:`R \\approx I + \\hat r`. Points are taken
-    relative to their centroid, which leaves the minimiser unchanged and keeps the
-    normal equations well conditioned. A rotation larger than ``max_rotation`` is
-    scaled down (with its translation) to that angle.
-
-    Args:
-        points: contact points ``p_i``, object frame, shape (K, 3), metres.
-        normals: their outward normals ``n^p_i``, object frame, shape (K, 3).
-        targets: matched object points ``q_i``, shape (K, 3), metres.
-        target_normals: object normals ``n^q_i`` at the targets, shape (K, 3).
-        normal_weight: ``alpha``, metres (0 disables the normal rows).
-        max_rotation: largest rotation of one step, radians.
-
-    Returns:
-        ``T_delta``, shape (4, 4): the motion to apply on the left of ``T_object_gripper``.
-    """
-    centre = points.mean(axis=0)
-    offsets = points - centre
-    A = np.concatenate([cross(offsets, target_normals), target_normals], axis=1)
-    b = np.einsum("ij,ij->i", targets - points, target_normals)
-    H = A.T @ A
-    g = A.T @ b
-    if normal_weight > 0.0:
-        An = normal_weight * cross(normals, target_normals)
-        bn = -normal_weight * (np.einsum("ij,ij->i", normals, target_normals) + 1.0)
-        H[:3, :3] += An.T @ An
-        g[:3] += An.T @ bn
-    # A tiny ridge keeps directions the surfaces leave free (a pad sliding on a
-    # plane) at zero motion instead of letting round-off move them.
-    ridge = 1e-12 * max(np.trace(H), 1e-300)
-    x = np.linalg.solve(H + ridge * np.eye(6), g)
-    angle = float(np.linalg.norm(x[:3]))
-    if angle > max_rotation:
-        x *= max_rotation / angle
-    R = exp_so3(x[:3])
-    T = np.eye(4)
-    T[:3, :3] = R
-    T[:3, 3] = centre + x[3:] - R @ centre
-    return T
+    """The palm step of one fit (see :func:`palm_steps`); returns ``T_delta``, shape (4, 4)."""
+    one = Segments.single(len(points))
+    return palm_steps(points, normals, targets, target_normals, one,
+                      normal_weight=normal_weight, max_rotation=max_rotation)[0]

@@ -1,9 +1,15 @@
 """Grasp planning by guided sampling (paper Algorithm 3): :func:`plan`.
 
-Each sample takes an initial pose from the sampler, runs ISF (:func:`isf.fit`),
-checks the fitted gripper for collisions (:class:`isf.collision.CollisionChecker`)
-and reports the outcome back to the sampler, which uses it to guide the next
-proposal (the regret bandit does; the uniform sampler ignores it).
+Each sample takes an initial pose from the sampler, runs ISF, checks the fitted
+gripper for collisions (:class:`isf.collision.CollisionChecker`) and reports the
+outcome back to the sampler, which uses it to guide the next proposal (the regret
+bandit does; the uniform sampler ignores it).
+
+Up to ``batch_size`` samples are fitted at once, in lockstep
+(:class:`isf.lockstep.LockstepFitter`): each keeps its own ISF state and stop rule, and
+a finished sample is checked, reported to the sampler and replaced by a new proposal
+straight away, so the sampler learns from every outcome with a delay of at most
+``batch_size - 1`` samples. ``batch_size=1`` is the paper's strictly sequential loop.
 
 Ranking: collision-free grasps first, then grasps whose every contact surface
 touches the object, then by mean point-to-plane distance (lower first).
@@ -20,11 +26,12 @@ import numpy as np
 
 from .collision import CollisionChecker, CollisionReport, Plane
 from .config import FitConfig
-from .fit import fit
+from .fit import _check_joints, _check_pose
+from .lockstep import LockstepFitter
 from .gripper import Gripper
 from .object_surface import ObjectSurface
 from .result import FitResult
-from .samplers import Outcome, Sampler, get_sampler
+from .samplers import Outcome, Proposal, Sampler, get_sampler
 
 __all__ = ["Grasp", "PlanResult", "PlanStats", "plan"]
 
@@ -146,6 +153,7 @@ def plan(
     *,
     obstacles: Sequence[Plane] = (),
     collision_tolerance: float = 0.002,
+    batch_size: int = 16,
     progress: Callable[[int, int, Grasp], None] | None = None,
 ) -> PlanResult:
     """Plan grasps of an object with a gripper (Algorithm 3).
@@ -159,13 +167,15 @@ def plan(
         config: ISF parameters; default the paper's.
         obstacles: half-spaces the gripper must not enter (e.g. ``Plane.table(z)``), object frame.
         collision_tolerance: penetration depth tolerated before a grasp counts as colliding, metres.
+        batch_size: samples fitted at once (see the module docstring); 1 is the paper's loop.
         progress: called after each sample as ``progress(done, total, grasp)``.
 
     Returns:
         the ranked :class:`PlanResult`.
 
     Raises:
-        InvalidInputError: ``samples`` is not a positive integer.
+        InvalidInputError: ``samples`` or ``batch_size`` is not a positive integer, or the
+            sampler proposed an invalid pose or joint vector.
         GripperDescriptionError, ObjectLoadError, SamplerNotFound: bad gripper, object or sampler.
     """
     from .exceptions import InvalidInputError
@@ -173,8 +183,9 @@ def plan(
     from .object_loading import load_object
 
     started = time.perf_counter()
-    if not isinstance(samples, (int, np.integer)) or samples < 1:
-        raise InvalidInputError(f"samples must be a positive integer, got {samples!r}")
+    for name, value in (("samples", samples), ("batch_size", batch_size)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+            raise InvalidInputError(f"{name} must be a positive integer, got {value!r}")
     config = FitConfig() if config is None else config
     gripper = gripper if isinstance(gripper, Gripper) else load_gripper(gripper)
     obj = obj if isinstance(obj, ObjectSurface) else load_object(obj)
@@ -182,25 +193,35 @@ def plan(
     rng = np.random.default_rng(seed)
     sampler.reset(obj, gripper, rng)
     checker = CollisionChecker(gripper, obj, obstacles=obstacles, tolerance=collision_tolerance)
+    fitter = LockstepFitter(gripper, obj, config)
     setup_time = time.perf_counter() - started
 
     grasps: list[Grasp] = []
+    proposals: dict[int, Proposal] = {}
     fit_time = collision_time = 0.0
-    for index in range(samples):
-        (proposal,) = sampler.propose(1, rng)
+    while len(grasps) < samples:
+        while fitter.n_active < batch_size and len(proposals) + len(grasps) < samples:
+            (proposal,) = sampler.propose(1, rng)
+            index = len(proposals) + len(grasps)
+            fitter.add(index, _check_pose(proposal.T_object_gripper), _check_joints(gripper, proposal.q))
+            proposals[index] = proposal
         t0 = time.perf_counter()
-        result = fit(gripper, obj, proposal.T_object_gripper, proposal.q, config)
-        t1 = time.perf_counter()
-        report = checker.check(result.T_object_gripper, result.q)
-        t2 = time.perf_counter()
-        fit_time += t1 - t0
-        collision_time += t2 - t1
-        error = result.mean_distance if result.all_surfaces_in_contact else NO_CONTACT_ERROR
-        sampler.observe([Outcome(proposal, error=error, collision_free=report.collision_free)])
-        grasp = Grasp(result, report, dict(proposal.record), index)
-        grasps.append(grasp)
-        if progress is not None:
-            progress(index + 1, samples, grasp)
+        finished = fitter.step()
+        fit_time += time.perf_counter() - t0
+        outcomes = []
+        for index, result in sorted(finished, key=lambda item: item[0]):
+            proposal = proposals.pop(index)
+            t1 = time.perf_counter()
+            report = checker.check(result.T_object_gripper, result.q)
+            collision_time += time.perf_counter() - t1
+            error = result.mean_distance if result.all_surfaces_in_contact else NO_CONTACT_ERROR
+            outcomes.append(Outcome(proposal, error=error, collision_free=report.collision_free))
+            grasp = Grasp(result, report, dict(proposal.record), index)
+            grasps.append(grasp)
+            if progress is not None:
+                progress(len(grasps), samples, grasp)
+        if outcomes:
+            sampler.observe(outcomes)
 
     grasps.sort(key=Grasp.sort_key)
     total = time.perf_counter() - started

@@ -6,7 +6,9 @@ from scipy.optimize import lsq_linear
 
 from _builders import parallel_gripper, random_rotation
 from isf.finger_step import FingerStepQP
-from isf.ipfo import MatchedPairs
+from isf.finger_step import finger_steps
+from isf.ipfo import PairBatch
+from isf.segments import Segments
 from isf.se3 import make_transform
 
 
@@ -36,17 +38,23 @@ def test_one_dof_qp_equals_paper_closed_form(seed):
     normals = rng.normal(size=kin.points.shape)
     normals /= np.linalg.norm(normals, axis=1)[:, None]
 
-    pairs = MatchedPairs(gripper, np.arange(gripper.n_points), targets, normals)
-    links = gripper.link_kinematics(q)
-    A, b = pairs.finger_rows(make_transform(R, t), *pairs.evaluate(links), links, normal_weight=0.01)
+    pairs = PairBatch(gripper, Segments.single(gripper.n_points), np.arange(gripper.n_points), targets, normals)
+    links = gripper.link_kinematics_many(q[None])
+    T = make_transform(R, t)[None]
+    A, b, An, _ = pairs.finger_rows(T, *pairs.evaluate(links), links, normal_weight=0.01)
+    assert An is None  # a prismatic joint turns no normal
     qp = FingerStepQP(1, damping=0.0)
     dq = qp.solve(A, b, gripper.lower - q, gripper.upper - q)
+    # the batched step (closed form, clipped) gives the same answer without OSQP
+    AtA, Atb = pairs.finger_system(T, *pairs.evaluate(links), links, normal_weight=0.01)
+    dq_batched, _ = finger_steps(AtA, Atb, (gripper.lower - q)[None], (gripper.upper - q)[None], 0.0, [qp])
 
     # Paper: jaw width d = 2 q, v points from finger 1 (left, at -y) to finger 2 (right, at +y).
     finger = np.where(gripper.point_surface == 0, 1, 2)
     dd = paper_closed_form(R, t, np.array([0.0, 1.0, 0.0]), kin.points, targets, normals,
                            finger, 2 * q[0], 2 * 0.005, 2 * 0.015)
     assert dq[0] == pytest.approx(dd / 2, abs=1e-10)  # 0.1 nm: OSQP eps_abs is 1e-10
+    assert dq_batched[0, 0] == pytest.approx(dd / 2, abs=1e-12)
 
 
 @pytest.mark.parametrize("n", [2, 6, 16])
@@ -76,19 +84,40 @@ def test_finger_rows_are_the_derivative_of_the_residuals():
     targets = rng.normal(scale=0.05, size=(60, 3))
     normals = rng.normal(size=(60, 3))
     normals /= np.linalg.norm(normals, axis=1)[:, None]
-    pairs = MatchedPairs(gripper, index, targets, normals)
+    pairs = PairBatch(gripper, Segments.single(60), index, targets, normals)
     alpha = 0.01
 
     def residuals(q):
-        points, normals_g, _ = pairs.evaluate(gripper.link_kinematics(q))
+        points, normals_g, _ = pairs.evaluate(gripper.link_kinematics_many(q[None]))
         R, t = T[:3, :3], T[:3, 3]
         d = np.einsum("kj,kj->k", points @ R.T + t - pairs.targets, pairs.target_normals)
         c = np.einsum("kj,kj->k", normals_g @ R.T, pairs.target_normals) + 1.0
         return np.r_[d, alpha * c]
 
-    links = gripper.link_kinematics(q)
-    A, b = pairs.finger_rows(T, *pairs.evaluate(links), links, normal_weight=alpha)
+    links = gripper.link_kinematics_many(q[None])
+    A, b, An, bn = pairs.finger_rows(T[None], *pairs.evaluate(links), links, normal_weight=alpha)
+    A, b = np.concatenate([A, An]), np.concatenate([b, bn])
     np.testing.assert_allclose(b, -residuals(q), atol=1e-15)
     h = 1e-6
     fd = np.stack([(residuals(q + h * e) - residuals(q - h * e)) / (2 * h) for e in np.eye(len(q))], axis=1)
     np.testing.assert_allclose(A, fd, atol=1e-8)
+
+
+def test_batched_finger_steps_equal_osqp_per_fit():
+    """Interior minimisers come from one batched solve, the rest from OSQP: all equal BVLS."""
+    rng = np.random.default_rng(3)
+    n, B = 6, 40
+    A = rng.normal(size=(B, 30, n))
+    b = rng.normal(size=(B, 30))
+    lower = -rng.uniform(0.0, 1.0, (B, n))
+    upper = rng.uniform(0.0, 1.0, (B, n))
+    AtA, Atb = np.einsum("bki,bkj->bij", A, A), np.einsum("bki,bk->bi", A, b)
+    qps = [FingerStepQP(n, damping=0.0) for _ in range(B)]
+    dq, failed = finger_steps(AtA, Atb, lower, upper, 0.0, qps)
+    assert not failed.any()
+    bound_active = 0
+    for k in range(B):
+        ref = lsq_linear(A[k], b[k], bounds=(lower[k], upper[k]), method="bvls", tol=1e-14).x
+        np.testing.assert_allclose(dq[k], ref, atol=1e-8)
+        bound_active += bool(np.any(np.isclose(ref, lower[k]) | np.isclose(ref, upper[k])))
+    assert 0 < bound_active < B  # both paths were exercised

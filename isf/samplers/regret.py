@@ -47,7 +47,10 @@ class RegretSampler(Sampler):
 
     The paper's loop proposes one grasp at a time (``propose(1)`` then
     ``observe``); ``propose(n)`` with ``n > 1`` gives ``n`` proposals at the
-    current best cluster, each with its own random orientation. ``record``
+    current best cluster, each with its own random orientation. When proposals
+    are still in flight (a planner fitting several samples at once), ties in
+    regret go to the cluster with the fewest proposals awaiting an outcome, so
+    the first round still spreads over the clusters. ``record``
     holds ``{"cluster": k, "regret": regret(k) when proposed}``.
 
     Args:
@@ -64,6 +67,7 @@ class RegretSampler(Sampler):
         labels: cluster of each object point, shape (N,).
         regret: average regret per cluster, shape (K,), metres.
         trials: number of outcomes per cluster, shape (K,).
+        pending: proposals per cluster still awaiting an outcome, shape (K,).
     """
 
     name = "regret"
@@ -79,6 +83,7 @@ class RegretSampler(Sampler):
     regret: np.ndarray = field(init=False, repr=False, default=None)
     trials: np.ndarray = field(init=False, repr=False, default=None)
     inward: np.ndarray = field(init=False, repr=False, default=None)
+    pending: np.ndarray = field(init=False, repr=False, default=None)
     _approach: np.ndarray | None = field(init=False, repr=False, default=None)
 
     def __post_init__(self) -> None:
@@ -110,6 +115,7 @@ class RegretSampler(Sampler):
         self.labels = vq(obj.points, self.centres, check_finite=False)[0]
         self.regret = np.zeros(self.n_clusters)
         self.trials = np.zeros(self.n_clusters, dtype=int)
+        self.pending = np.zeros(self.n_clusters, dtype=int)
         self._approach = resolve_approach(self.orientation, gripper, self.name)
         self.inward = self._inward_directions(obj)
 
@@ -146,9 +152,10 @@ class RegretSampler(Sampler):
         )
 
     def best_cluster(self) -> int:
-        """Index of the cluster with the least average regret (lowest index on ties)."""
+        """Index of the cluster with the least average regret (on ties: fewest proposals in
+        flight, then the lowest index)."""
         self._require_reset()
-        return int(np.argmin(self.regret))
+        return int(np.lexsort((np.arange(self.n_clusters), self.pending, self.regret))[0])
 
     def propose(self, n: int, rng: np.random.Generator) -> list[Proposal]:
         """``n`` proposals at the best cluster centre, each with its own orientation."""
@@ -157,6 +164,7 @@ class RegretSampler(Sampler):
         R = initial_rotations(self._approach, np.repeat(self.inward[k][None], n, axis=0), rng)
         T = place_gripper(gripper, self.centres[k], R)
         record = {"cluster": k, "regret": float(self.regret[k])}
+        self.pending[k] += n
         return [Proposal(T[i], record=record) for i in range(n)]
 
     def observe(self, outcomes: Sequence[Outcome]) -> None:
@@ -177,3 +185,4 @@ class RegretSampler(Sampler):
             average = (self.regret[k] * self.trials[k] + outcome.error) / (self.trials[k] + 1)
             self.regret[k] = (1.0 + self.gamma * collided) * average
             self.trials[k] += 1
+            self.pending[k] = max(self.pending[k] - 1, 0)

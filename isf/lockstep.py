@@ -1,0 +1,241 @@
+"""The ISF engine: many fits advanced in lockstep (paper Algorithm 2, batched).
+
+Every fit keeps its own state (pose, joints, pyramid level, stop rule) and follows
+Algorithm 2 exactly as if it ran alone; what the fits share is the arithmetic of each
+ISF iteration: one nearest-neighbour query for the contact points of all fits, one
+batched IPFO (:func:`isf.ipfo.ipfo`). Fits can join at any time, and each leaves as soon
+as its own stop rule fires, so a planner can keep the batch full (new samples replace
+finished ones) while its sampler still learns from every finished fit.
+
+The stop rule
+-------------
+On pyramid level ``l`` the loop keeps ``e_s = ||S^f - S^f_0||``, the
+displacement of the level's contact points from where they stood when the level
+began (cumulative, Frobenius norm over the points), and ``eta = e_s / e_s,prev``.
+It stops when ``eta`` lies in ``[1 - eps_l, 1 + eps_l]`` with ``eps_l = 2**l eps0``
+(the total displacement stopped growing by more than ``eps_l`` relatively), or
+after ``I_l = I0 / 2**l`` iterations. A gripper that does not move at all
+(``e_s = 0``) has converged too.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Hashable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .config import FitConfig
+from .correspondence import match_many
+from .finger_step import FingerStepQP
+from .gripper import Gripper, LinkKinematics
+from .ipfo import PairBatch, ipfo
+from .object_surface import ObjectSurface
+from .result import FitResult, FitStatus, IterationRecord
+from .segments import Segments
+
+__all__ = ["LockstepFitter", "score_fit"]
+
+
+@dataclass(eq=False)
+class _Fit:
+    """The state of one fit between two ISF iterations."""
+
+    key: Hashable
+    T: np.ndarray
+    q: np.ndarray
+    qp: FingerStepQP | None
+    started: float
+    level: int = 0
+    index: np.ndarray = field(default=None, repr=False)  # contact points of the level
+    start: np.ndarray = field(default=None, repr=False)  # their positions when the level began
+    current: np.ndarray = field(default=None, repr=False)
+    current_normals: np.ndarray = field(default=None, repr=False)
+    max_iterations: int = 0
+    eps: float = 0.0
+    iteration: int = 0
+    displacement: float = np.inf
+    eta: float = 0.0
+    status: FitStatus = FitStatus.MAX_ITERATIONS
+    history: list = field(default_factory=list)
+
+    def level_converged(self) -> bool:
+        return 1.0 - self.eps <= self.eta <= 1.0 + self.eps
+
+
+class LockstepFitter:
+    """Runs any number of ISF fits of one gripper on one object together.
+
+    Usage: :meth:`add` fits, call :meth:`step` until :attr:`n_active` is 0 (or keep
+    adding); each call returns the fits that finished in it.
+
+    Args:
+        gripper: the gripper.
+        obj: the object surface.
+        config: fit parameters; default the paper's.
+    """
+
+    def __init__(self, gripper: Gripper, obj: ObjectSurface, config: FitConfig | None = None):
+        self.gripper = gripper
+        self.obj = obj
+        self.config = FitConfig() if config is None else config
+        self._levels = [np.flatnonzero(gripper.level_mask(level)) for level in range(self.config.levels)]
+        self._fits: list[_Fit] = []
+        self._spare_qps: list[FingerStepQP] = []
+
+    @property
+    def n_active(self) -> int:
+        """Fits still running."""
+        return len(self._fits)
+
+    def add(self, key: Hashable, T_object_gripper: np.ndarray, q: np.ndarray) -> None:
+        """Start a fit from palm pose ``T_object_gripper`` (4, 4) and joints ``q`` (n_joints,).
+
+        The inputs must be valid (a rigid transform; joints within their limits):
+        :func:`isf.fit` checks them for users.
+        """
+        fit = _Fit(key, np.array(T_object_gripper, dtype=float), np.array(q, dtype=float),
+                   self._take_qp(), time.perf_counter())
+        self._enter_level(fit, self.config.levels - 1)
+        self._fits.append(fit)
+
+    def _take_qp(self) -> FingerStepQP | None:
+        """A finger-step QP for a new fit: a finished fit's (already set up) or a new one."""
+        if not self.gripper.n_joints:
+            return None
+        if self._spare_qps:
+            return self._spare_qps.pop()
+        return FingerStepQP(self.gripper.n_joints, self.config.finger_damping)
+
+    def _enter_level(self, fit: _Fit, level: int) -> None:
+        fit.level = level
+        fit.index = self._levels[level]
+        fit.max_iterations = max(1, self.config.max_iterations // 2**level)
+        fit.eps = 2**level * self.config.tolerance
+        fit.current, fit.current_normals = self._object_points(fit.T, fit.q, fit.index)
+        fit.start = fit.current
+        fit.iteration, fit.displacement, fit.eta = 0, np.inf, 0.0
+
+    def _object_points(self, T: np.ndarray, q: np.ndarray, index: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Contact points ``index`` and their normals at ``(T, q)``, object frame, each (len(index), 3)."""
+        points, normals = self.gripper.contact_points(q, index)
+        return points @ T[:3, :3].T + T[:3, 3], normals @ T[:3, :3].T
+
+    def step(self) -> list[tuple[Hashable, FitResult]]:
+        """One ISF iteration of every running fit; returns ``(key, result)`` of the fits that ended."""
+        fits, config = self._fits, self.config
+        if not fits:
+            return []
+        counts = np.array([len(f.index) for f in fits])
+        queries = Segments.from_counts(counts)
+        pairs = match_many(
+            self.obj, np.concatenate([f.current for f in fits]), queries,
+            outlier_factor=config.outlier_factor, outlier_floor=config.outlier_floor,
+            reject_duplicates=config.reject_duplicates,
+            normals=np.concatenate([f.current_normals for f in fits]),
+            max_normal_angle=config.max_normal_angle,
+        )
+        owner = queries.ids[pairs.source]
+        n_pairs = np.bincount(owner, minlength=len(fits))
+        fitted = n_pairs >= config.min_pairs
+        finished: list[_Fit] = []
+        for f in (f for f, ok in zip(fits, fitted) if not ok):
+            f.status = FitStatus.LOST_CONTACT
+            finished.append(f)
+        if fitted.any():
+            self._iterate([f for f, ok in zip(fits, fitted) if ok], pairs, owner, fitted,
+                          np.concatenate([f.index for f in fits]), finished)
+        done = {id(f) for f in finished}
+        self._fits = [f for f in fits if id(f) not in done]
+        for f in finished:
+            if f.qp is not None:
+                self._spare_qps.append(f.qp)
+        return [(f.key, self._result(f)) for f in finished]
+
+    def _iterate(self, fits: list[_Fit], pairs, owner, fitted, point_index, finished: list[_Fit]) -> None:
+        """IPFO on the matched pairs of ``fits``, then the stop rule of each."""
+        keep = fitted[owner]
+        renumber = np.cumsum(fitted) - 1
+        batch = PairBatch(self.gripper, Segments(renumber[owner[keep]]), point_index[pairs.source[keep]],
+                          self.obj.points[pairs.target[keep]], self.obj.normals[pairs.target[keep]])
+        T = np.stack([f.T for f in fits])
+        q = np.stack([f.q for f in fits]).reshape(len(fits), self.gripper.n_joints)
+        qps = [f.qp for f in fits] if self.gripper.n_joints else None
+        result = ipfo(batch, T, q, qps, self.config)
+        current, current_normals = self._level_points(fits, result.T_object_gripper, result.links)
+        for b, f in enumerate(fits):
+            f.T, f.q = result.T_object_gripper[b], result.q[b]
+            f.current, f.current_normals = current[b], current_normals[b]
+            f.iteration += 1
+            previous = f.displacement
+            f.displacement = float(np.linalg.norm(f.current - f.start))
+            f.eta = 1.0 if f.displacement <= 1e-12 else f.displacement / previous
+            f.history.append(IterationRecord(
+                level=f.level, iteration=f.iteration, mean_distance=float(result.mean_distance[b]),
+                error=float(result.error[b]), n_pairs=int(batch.segments.counts[b]), q=f.q.copy(),
+                ipfo_errors=result.errors[b],
+            ))
+            if f.level_converged() or f.iteration >= f.max_iterations:
+                if f.level == 0:
+                    f.status = FitStatus.CONVERGED if f.level_converged() else FitStatus.MAX_ITERATIONS
+                    finished.append(f)
+                else:
+                    self._enter_level(f, f.level - 1)
+
+    def _level_points(self, fits: list[_Fit], T: np.ndarray, links: LinkKinematics):
+        """Each fit's level points and normals at its new state, object frame: lists of (k_b, 3)."""
+        g = self.gripper
+        index = np.concatenate([f.index for f in fits])
+        seg = Segments.from_counts(np.array([len(f.index) for f in fits]))
+        fit_of, link = seg.ids, g.point_link[index]
+        R = links.rotations[fit_of, link]
+        points = np.einsum("kij,kj->ki", R, g.points_link[index]) + links.positions[fit_of, link]
+        normals = np.einsum("kij,kj->ki", R, g.normals_link[index])
+        Tk = T[fit_of]
+        points = np.einsum("kij,kj->ki", Tk[:, :3, :3], points) + Tk[:, :3, 3]
+        normals = np.einsum("kij,kj->ki", Tk[:, :3, :3], normals)
+        slices = seg.slices()
+        return [points[s] for s in slices], [normals[s] for s in slices]
+
+    def _result(self, f: _Fit) -> FitResult:
+        """Score the final state on the finest level with fresh correspondences."""
+        return score_fit(self.gripper, self.obj, f.T, f.q, self.config, f.status,
+                         tuple(f.history), time.perf_counter() - f.started)
+
+
+def score_fit(gripper: Gripper, obj: ObjectSurface, T: np.ndarray, q: np.ndarray, config: FitConfig,
+              status: FitStatus, history: tuple[IterationRecord, ...], elapsed: float) -> FitResult:
+    """The :class:`FitResult` of a final state ``(T, q)``: all contact points matched afresh."""
+    points, normals = gripper.contact_points(q)
+    R, t = T[:3, :3], T[:3, 3]
+    points = points @ R.T + t
+    normals = normals @ R.T
+    nearest = obj.nearest(points)
+    pairs = match_many(
+        obj, points, Segments.single(len(points)), nearest=nearest, outlier_factor=config.outlier_factor, outlier_floor=config.outlier_floor,
+        reject_duplicates=config.reject_duplicates, normals=normals,
+        max_normal_angle=config.max_normal_angle,
+    )
+    if len(pairs.source):
+        batch = PairBatch(gripper, Segments.single(len(pairs.source)), pairs.source,
+                          obj.points[pairs.target], obj.normals[pairs.target])
+        state = batch.evaluate(gripper.link_kinematics_many(q[None]))
+        d, c = batch.residuals(T[None], *state[:2])  # c = (R n^p)^T n^q + 1
+        mean_distance = float(np.abs(d).mean())
+        misalignment = float(np.arccos(np.clip(1.0 - c, -1.0, 1.0)).mean())
+        error = float(batch.errors(T[None], *state[:2], config.normal_weight)[0])
+    else:
+        mean_distance = misalignment = error = float("inf")
+    touching = nearest[0] <= config.contact_distance
+    surface_contact = {
+        s.name: float(touching[gripper.point_surface == k].mean())
+        for k, s in enumerate(gripper.surfaces)
+    }
+    return FitResult(
+        T_object_gripper=T, q=q.copy(), joints=gripper.joints(q), mean_distance=mean_distance,
+        normal_misalignment=misalignment, error=error, n_pairs=len(pairs.source),
+        contact_points=points[pairs.source], object_points=obj.points[pairs.target],
+        surface_contact=surface_contact, iterations=len(history), status=status,
+        history=history, time=elapsed,
+    )

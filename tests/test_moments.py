@@ -1,0 +1,58 @@
+"""The moment form of IPFO equals the pair-by-pair sums it replaces."""
+
+import numpy as np
+import pytest
+
+import isf
+from _builders import random_rotation
+from isf.ipfo import PairBatch
+from isf.moments import PairMoments
+from isf.palm_step import palm_motions, palm_steps
+from isf.se3 import make_transform
+from isf.segments import Segments
+
+
+@pytest.fixture(scope="module")
+def case():
+    """Random pairs of 5 fits of the three-finger hand (revolute, 3 links), far from the origin."""
+    hand = isf.load_gripper("three-finger")
+    rng = np.random.default_rng(11)
+    counts = np.array([40, 7, 120, 33, 64])
+    seg = Segments.from_counts(counts)
+    index = np.concatenate([rng.choice(hand.n_points, c, replace=False) for c in counts])
+    targets = rng.normal(scale=0.05, size=(len(index), 3)) + [0.4, -0.3, 0.8]
+    normals = rng.normal(size=(len(index), 3))
+    normals /= np.linalg.norm(normals, axis=1)[:, None]
+    pairs = PairBatch(hand, seg, index, targets, normals)
+    T = np.stack([make_transform(random_rotation(rng, 2.0), [0.4, -0.3, 0.8] + rng.normal(scale=0.05, size=3))
+                  for _ in counts])
+    q = rng.uniform(hand.lower, hand.upper, (len(counts), hand.n_joints))
+    links = hand.link_kinematics_many(q)
+    moments = PairMoments(seg.ids, hand.point_link[index], hand.points_link[index], hand.normals_link[index],
+                          targets, normals, len(counts))
+    return pairs, moments, T, links
+
+
+def test_errors_equal_pairwise_sums(case):
+    pairs, moments, T, links = case
+    points, normals, _ = pairs.evaluate(links)
+    expected = pairs.errors(T, points, normals, 0.01)
+    np.testing.assert_allclose(moments.errors(T, links, 0.01), expected, rtol=1e-9, atol=1e-15)
+
+
+def test_palm_system_gives_the_pairwise_palm_step(case):
+    pairs, moments, T, links = case
+    points, normals, _ = pairs.evaluate(links)
+    expected = palm_steps(*pairs.to_object(T, points, normals), pairs.targets, pairs.target_normals,
+                          pairs.segments, normal_weight=0.01, max_rotation=np.pi)
+    H, g, centre = moments.palm_system(T, links, 0.01)
+    np.testing.assert_allclose(palm_motions(H, g, centre, np.pi), expected, atol=1e-9)
+
+
+def test_finger_system_equals_pairwise_normal_equations(case):
+    pairs, moments, T, links = case
+    points, normals, offsets = pairs.evaluate(links)
+    AtA, Atb = pairs.finger_system(T, points, normals, offsets, links, 0.01)
+    AtA_m, Atb_m = moments.finger_system(T, links, 0.01)
+    np.testing.assert_allclose(AtA_m, AtA, rtol=1e-9, atol=1e-14)
+    np.testing.assert_allclose(Atb_m, Atb, rtol=1e-9, atol=1e-14)
