@@ -23,7 +23,7 @@ from .exceptions import (
     QPStepError,
     SamplerNotFound,
 )
-from .fit import fit
+from .fit import fit, fit_many
 from .gripper import ContactSurface, Gripper
 from .gripper_loading import inspect_gripper, load_gripper
 from .object_loading import load_object
@@ -61,6 +61,7 @@ __all__ = [
     "__version__",
     "available_samplers",
     "fit",
+    "fit_many",
     "get_sampler",
     "inspect_gripper",
     "load_gripper",

@@ -15,6 +15,7 @@ from pathlib import Path
 
 from . import __version__
 from .exceptions import ISFError
+from .planner import BATCH_SIZE
 
 __all__ = ["main"]
 
@@ -34,10 +35,13 @@ def _parser() -> argparse.ArgumentParser:
         "(see 'isf grippers') or a tagged URDF; OBJECT is a mesh or point-cloud file, "
         "shape:NAME (cylinder, box, sphere, capsule, torus) or asset:NAME (e.g. asset:bunny)."))
     p.add_argument("--gripper", "-g", required=True, help="bundled gripper name or URDF path")
-    p.add_argument("--object", "-o", required=True, dest="object_spec", help="mesh/cloud file, shape:NAME or asset:NAME")
+    p.add_argument("--object", "-o", required=True, dest="object_spec",
+                   help="mesh/cloud file, shape:NAME or asset:NAME")
     p.add_argument("--samples", "-n", type=int, default=60, help="samples to evaluate (default 60)")
     p.add_argument("--sampler", "-s", default="regret", help="sampler name (default regret; see 'isf samplers')")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--batch-size", type=int, default=BATCH_SIZE, metavar="B",
+                   help=f"samples fitted at once in lockstep (default {BATCH_SIZE}; 1 = the paper's sequential loop)")
     p.add_argument("--units", choices=("m", "cm", "mm"), default="m", help="units of the object file (default m)")
     p.add_argument("--scale", type=float, default=1.0, help="extra scale factor for the object")
     p.add_argument("--table", type=float, default=None, metavar="Z",
@@ -126,6 +130,7 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     show = not args.quiet and sys.stderr.isatty()
     progress = _ProgressBar(sys.stderr) if show else None
     result = plan(gripper, obj, samples=args.samples, sampler=args.sampler, seed=args.seed,
+                  batch_size=args.batch_size,
                   obstacles=obstacles, progress=progress)
     if progress:
         progress.close()

@@ -55,6 +55,10 @@ class FingerStepQP:
         )
         self._x = np.zeros(n)
 
+    def reset(self) -> None:
+        """Forget the warm start (before the problem serves another fit)."""
+        self._x = np.zeros(self.n)
+
     def solve(self, A: np.ndarray, b: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
         """Minimise ``||A dq - b||^2 + lambda ||dq||^2`` subject to ``lower <= dq <= upper``.
 

@@ -148,6 +148,17 @@ def _select(mask: np.ndarray, new, old):
     return type(old)(*values) if hasattr(old, "_fields") else tuple(values)
 
 
+def _kinematics_where(gripper: Gripper, links: LinkKinematics, q: np.ndarray, mask: np.ndarray) -> LinkKinematics:
+    """Kinematics at ``q`` (B, n) for the fits in ``mask`` (B,); the others keep ``links``."""
+    if mask.all():
+        return gripper.link_kinematics_many(q)
+    fresh = gripper.link_kinematics_many(q[mask])
+    arrays = [a.copy() for a in links]
+    for a, f in zip(arrays, fresh):
+        a[mask] = f
+    return LinkKinematics(*arrays)
+
+
 def ipfo(pairs: PairBatch, T: np.ndarray, q: np.ndarray, qps: list[FingerStepQP] | None,
          config: FitConfig) -> IPFOResult:
     """Alternate palm and finger steps until E stops decreasing (Algorithm 1), for each fit.
@@ -187,7 +198,7 @@ def ipfo(pairs: PairBatch, T: np.ndarray, q: np.ndarray, qps: list[FingerStepQP]
             upper = np.maximum(np.minimum(gripper.upper - q, step), 0.0)
             dq, _ = finger_steps(AtA, Atb, lower, upper, config.finger_damping, qps)
             q_new = gripper.clip(q + dq)
-            links_new = gripper.link_kinematics_many(q_new)
+            links_new = _kinematics_where(gripper, links, q_new, active)
         error_new = moments.errors(T_new, links_new, alpha)
         accept = active & (error_new <= error)
         decrease = error - error_new

@@ -105,7 +105,9 @@ class LockstepFitter:
         if not self.gripper.n_joints:
             return None
         if self._spare_qps:
-            return self._spare_qps.pop()
+            qp = self._spare_qps.pop()
+            qp.reset()
+            return qp
         return FingerStepQP(self.gripper.n_joints, self.config.finger_damping)
 
     def _enter_level(self, fit: _Fit, level: int) -> None:
@@ -213,8 +215,8 @@ def score_fit(gripper: Gripper, obj: ObjectSurface, T: np.ndarray, q: np.ndarray
     normals = normals @ R.T
     nearest = obj.nearest(points)
     pairs = match_many(
-        obj, points, Segments.single(len(points)), nearest=nearest, outlier_factor=config.outlier_factor, outlier_floor=config.outlier_floor,
-        reject_duplicates=config.reject_duplicates, normals=normals,
+        obj, points, Segments.single(len(points)), nearest=nearest,
+        outlier_factor=config.outlier_factor, outlier_floor=config.outlier_floor, reject_duplicates=config.reject_duplicates, normals=normals,
         max_normal_angle=config.max_normal_angle,
     )
     if len(pairs.source):

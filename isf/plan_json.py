@@ -69,6 +69,7 @@ def plan_to_dict(result: PlanResult, *, top: int | None = None) -> dict:
             "fit_time": s.fit_time,
             "collision_time": s.collision_time,
             "setup_time": s.setup_time,
+            "batch_size": s.batch_size,
         },
         "config": result.config.to_dict(),
     }

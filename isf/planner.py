@@ -9,7 +9,9 @@ Up to ``batch_size`` samples are fitted at once, in lockstep
 (:class:`isf.lockstep.LockstepFitter`): each keeps its own ISF state and stop rule, and
 a finished sample is checked, reported to the sampler and replaced by a new proposal
 straight away, so the sampler learns from every outcome with a delay of at most
-``batch_size - 1`` samples. ``batch_size=1`` is the paper's strictly sequential loop.
+``batch_size - 1`` samples. A sampler may hold fewer in flight
+(:meth:`isf.Sampler.in_flight_limit`; the regret sampler does while it explores).
+``batch_size=1`` is the paper's strictly sequential loop.
 
 Ranking: collision-free grasps first, then grasps whose every contact surface
 touches the object, then by mean point-to-plane distance (lower first).
@@ -34,6 +36,9 @@ from .result import FitResult
 from .samplers import Outcome, Proposal, Sampler, get_sampler
 
 __all__ = ["Grasp", "PlanResult", "PlanStats", "plan"]
+
+BATCH_SIZE = 8
+"""Default number of samples fitted at once by :func:`plan` (see the module docstring)."""
 
 NO_CONTACT_ERROR = 0.05
 """Error reported to samplers for a fit where some contact surface does not touch the object, metres."""
@@ -99,6 +104,7 @@ class PlanStats:
         fit_time: time spent in ISF, seconds.
         collision_time: time spent in collision checks, seconds.
         setup_time: time to prepare the sampler and the collision checker, seconds.
+        batch_size: samples fitted at once (see :func:`plan`).
     """
 
     samples: int
@@ -109,6 +115,7 @@ class PlanStats:
     fit_time: float
     collision_time: float
     setup_time: float
+    batch_size: int = 1
 
 
 @dataclass(frozen=True, eq=False)
@@ -143,6 +150,12 @@ class PlanResult:
         return [g for g in self.grasps if g.collision_free]
 
 
+def _slots(sampler: Sampler, batch_size: int) -> int:
+    """Samples to keep in flight: the batch size, or fewer when the sampler asks for it."""
+    limit = sampler.in_flight_limit()
+    return batch_size if limit is None else max(1, min(batch_size, int(limit)))
+
+
 def plan(
     gripper: Gripper | str | Path,
     obj: ObjectSurface | str | Path | np.ndarray,
@@ -153,7 +166,7 @@ def plan(
     *,
     obstacles: Sequence[Plane] = (),
     collision_tolerance: float = 0.002,
-    batch_size: int = 16,
+    batch_size: int = BATCH_SIZE,
     progress: Callable[[int, int, Grasp], None] | None = None,
 ) -> PlanResult:
     """Plan grasps of an object with a gripper (Algorithm 3).
@@ -200,7 +213,7 @@ def plan(
     proposals: dict[int, Proposal] = {}
     fit_time = collision_time = 0.0
     while len(grasps) < samples:
-        while fitter.n_active < batch_size and len(proposals) + len(grasps) < samples:
+        while fitter.n_active < _slots(sampler, batch_size) and len(proposals) + len(grasps) < samples:
             (proposal,) = sampler.propose(1, rng)
             index = len(proposals) + len(grasps)
             fitter.add(index, _check_pose(proposal.T_object_gripper), _check_joints(gripper, proposal.q))
@@ -230,5 +243,6 @@ def plan(
         samples=samples, collision_free=n_free, valid=sum(g.valid for g in grasps),
         total_time=total, time_per_collision_free=total / n_free if n_free else float("inf"),
         fit_time=fit_time, collision_time=collision_time, setup_time=setup_time,
+        batch_size=int(batch_size),
     )
     return PlanResult(tuple(grasps), stats, gripper.name, obj.name, sampler.name, seed, config)

@@ -171,3 +171,19 @@ def test_an_unsolvable_finger_step_is_skipped_not_fatal(monkeypatch, caplog):
     np.testing.assert_array_equal(result.q, hand.q_initial)  # the fingers never moved
     assert result.iterations > 0 and np.isfinite(result.mean_distance)
     assert "finger step skipped" in caplog.text
+
+
+def test_fits_in_lockstep_equal_fits_alone(paper_gripper):
+    """fit_many advances fits together; each must end exactly where it ends alone."""
+    obj = isf.open_object("shape:box")
+    rng = np.random.default_rng(4)
+    sampler = isf.get_sampler("uniform")
+    sampler.reset(obj, paper_gripper, rng)
+    starts = [p.T_object_gripper for p in sampler.propose(6, rng)]
+    together = isf.fit_many(paper_gripper, obj, np.stack(starts))
+    for T0, batched in zip(starts, together):
+        alone = isf.fit(paper_gripper, obj, T0)
+        assert batched.iterations == alone.iterations and batched.status == alone.status
+        np.testing.assert_allclose(batched.T_object_gripper, alone.T_object_gripper, atol=1e-12)
+        np.testing.assert_allclose(batched.q, alone.q, atol=1e-12)
+    assert len({r.iterations for r in together}) > 1  # the fits left the batch at different times

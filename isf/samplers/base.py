@@ -164,6 +164,16 @@ class Sampler(abc.ABC):
             outcomes: results for proposals this sampler made since :meth:`reset`.
         """
 
+    def in_flight_limit(self) -> int | None:
+        """How many proposals this sampler wants awaiting outcomes at once right now.
+
+        A planner fitting several samples at once (:func:`isf.plan` with ``batch_size > 1``)
+        asks before each proposal and waits for outcomes while this many are in flight.
+        None (the default) sets no limit; a sampler that needs feedback before it can
+        propose well (e.g. while exploring) returns a small number, at least 1.
+        """
+        return None
+
     def _require_reset(self) -> tuple[ObjectSurface, Gripper]:
         """The current object and gripper, or a RuntimeError when :meth:`reset` was not called."""
         if self.obj is None or self.gripper is None:

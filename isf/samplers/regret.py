@@ -167,6 +167,13 @@ class RegretSampler(Sampler):
         self.pending[k] += n
         return [Proposal(T[i], record=record) for i in range(n)]
 
+    def in_flight_limit(self) -> int | None:
+        """While some cluster has no outcome yet, one proposal per such cluster (exploration,
+        as the sequential loop does it); afterwards no limit."""
+        self._require_reset()
+        untried = int(np.count_nonzero(self.trials == 0))
+        return max(untried, 1) if untried else None
+
     def observe(self, outcomes: Sequence[Outcome]) -> None:
         """Fold each outcome into its cluster's average regret, in order.
 
