@@ -190,13 +190,13 @@ class LockstepFitter:
         g = self.gripper
         index = np.concatenate([f.index for f in fits])
         seg = Segments.from_counts(np.array([len(f.index) for f in fits]))
+        # Object-frame pose of every (fit, contact link), then one gather per point.
+        A = T[:, None, :3, :3] @ links.rotations
+        a = np.einsum("bij,blj->bli", T[:, :3, :3], links.positions) + T[:, None, :3, 3]
         fit_of, link = seg.ids, g.point_link[index]
-        R = links.rotations[fit_of, link]
-        points = np.einsum("kij,kj->ki", R, g.points_link[index]) + links.positions[fit_of, link]
-        normals = np.einsum("kij,kj->ki", R, g.normals_link[index])
-        Tk = T[fit_of]
-        points = np.einsum("kij,kj->ki", Tk[:, :3, :3], points) + Tk[:, :3, 3]
-        normals = np.einsum("kij,kj->ki", Tk[:, :3, :3], normals)
+        A_k = A[fit_of, link]
+        points = np.einsum("kij,kj->ki", A_k, g.points_link[index]) + a[fit_of, link]
+        normals = np.einsum("kij,kj->ki", A_k, g.normals_link[index])
         slices = seg.slices()
         return [points[s] for s in slices], [normals[s] for s in slices]
 
