@@ -65,7 +65,8 @@ class FitResult:
         iterations: ISF iterations over all levels.
         status: why the fit stopped.
         history: one record per ISF iteration.
-        time: wall time of the fit, seconds.
+        time: wall time from the start to the end of the fit, seconds (fits run together by
+            :func:`isf.fit_many` or :func:`isf.plan` share that time with each other).
     """
 
     T_object_gripper: np.ndarray
