@@ -3,7 +3,7 @@
 With the palm fixed, moving the joints by ``dq`` moves contact point ``i`` by
 ``R J_i dq`` (``J_i`` its point Jacobian in the gripper frame) and turns its
 normal by ``(R Jw_i dq) x n_i``. The step minimises the linearised fitting error
-(rows built by :meth:`isf.ipfo.MatchedPairs.finger_rows`)
+(rows built by :meth:`isf.ipfo.PairBatch.finger_rows`)
 
 .. math::
     \\min_{\\delta q} \\|A \\delta q - b\\|^2 + \\lambda \\|\\delta q\\|^2

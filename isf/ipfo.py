@@ -129,7 +129,7 @@ class IPFOResult(NamedTuple):
         T_object_gripper: palm poses, (B, 4, 4).
         q: joint vectors, (B, n_joints).
         error: total fitting error E at the result, (B,), m^2 (eq. 9a).
-        mean_distance: mean |point-to-plane distance| of each fit's pairs at the result, (B,), metres.
+        mean_distance: mean absolute point-to-plane distance of each fit's pairs at the result, (B,), metres.
         errors: per fit, E after each kept alternation (the paper's Fig. 5b), m^2.
         links: contact-link kinematics at the resulting joints (leading fit axis).
     """

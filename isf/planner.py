@@ -13,6 +13,12 @@ straight away, so the sampler learns from every outcome with a delay of at most
 (:meth:`isf.Sampler.in_flight_limit`; the regret sampler does while it explores).
 ``batch_size=1`` is the paper's strictly sequential loop.
 
+A fitted grasp that collides is repaired once (``repair_collisions``, on by default;
+:mod:`isf.clearance`): the links that penetrate are pushed out while the contact surfaces
+are pulled back onto the object, and the repaired grasp replaces the fit when the re-check
+finds it collision-free. Multi-fingered hands need this: ISF fits only the tagged fingertip
+surfaces, and the links behind them can end inside the object.
+
 Ranking: collision-free grasps first, then grasps whose every contact surface
 touches the object, then by mean point-to-plane distance (lower first).
 """
@@ -26,6 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .clearance import ClearanceRepair, repair_penetration
 from .collision import CollisionChecker, CollisionReport, Plane
 from .config import FitConfig
 from .fit import _check_joints, _check_pose
@@ -167,6 +174,7 @@ def plan(
     obstacles: Sequence[Plane] = (),
     collision_tolerance: float = 0.002,
     batch_size: int = BATCH_SIZE,
+    repair_collisions: bool = True,
     progress: Callable[[int, int, Grasp], None] | None = None,
 ) -> PlanResult:
     """Plan grasps of an object with a gripper (Algorithm 3).
@@ -181,6 +189,11 @@ def plan(
         obstacles: half-spaces the gripper must not enter (e.g. ``Plane.table(z)``), object frame.
         collision_tolerance: penetration depth tolerated before a grasp counts as colliding, metres.
         batch_size: samples fitted at once (see the module docstring); 1 is the paper's loop.
+        repair_collisions: when a fitted grasp collides, run :func:`isf.clearance.repair_penetration`
+            on it (links pushed out of the object and obstacles while the contact surfaces are
+            pulled back onto the object) and keep the repaired grasp if the re-check finds it
+            collision-free. Its time counts as fit time, its re-check as collision time. False
+            gives the paper's Algorithm 3.
         progress: called after each sample as ``progress(done, total, grasp)``.
 
     Returns:
@@ -207,6 +220,7 @@ def plan(
     sampler.reset(obj, gripper, rng)
     checker = CollisionChecker(gripper, obj, obstacles=obstacles, tolerance=collision_tolerance)
     fitter = LockstepFitter(gripper, obj, config)
+    repairer = ClearanceRepair(gripper, obj, obstacles=obstacles) if repair_collisions else None
     setup_time = time.perf_counter() - started
 
     grasps: list[Grasp] = []
@@ -227,6 +241,15 @@ def plan(
             t1 = time.perf_counter()
             report = checker.check(result.T_object_gripper, result.q)
             collision_time += time.perf_counter() - t1
+            if repairer is not None and not report.collision_free:
+                t2 = time.perf_counter()
+                repaired = repair_penetration(gripper, obj, result, fit_config=config, repairer=repairer)
+                t3 = time.perf_counter()
+                again = checker.check(repaired.T_object_gripper, repaired.q)
+                collision_time += time.perf_counter() - t3
+                fit_time += t3 - t2
+                if again.collision_free:
+                    result, report = repaired, again
             error = result.mean_distance if result.all_surfaces_in_contact else NO_CONTACT_ERROR
             outcomes.append(Outcome(proposal, error=error, collision_free=report.collision_free))
             grasp = Grasp(result, report, dict(proposal.record), index)

@@ -1,0 +1,636 @@
+"""Collision repair of a fitted grasp: push penetrating links out, keep the contacts.
+
+ISF fits only the tagged contact surfaces; on a multi-fingered hand the links behind a
+fingertip pad (and sometimes the palm) can end up inside the object. :func:`repair_penetration`
+(or :class:`ClearanceRepair`, built once per gripper/object pair) runs a few Gauss-Newton
+iterations of one small QP over the palm twist and a joint step:
+
+.. math::
+    \\min_{x, s}\\ \\sum_k \\big(m_k^T(c_k + A_k x - o_k)\\big)^2 + x^T \\Lambda x
+        + w \\sum_e s_e^2
+    \\quad s.t.\\quad n_i^T(p_i + A_i x - a_i) + s_{e(i)} \\ge \\mu_i,\\ s_e \\ge 0,\\
+    q_{min} \\le q + \\delta q \\le q_{max},\\ |x| \\le \\Delta
+
+with ``x = (v, w, dq)``: a palm translation ``v`` and rotation ``w`` (about the centroid of the
+contacts) in the object frame, and a joint step ``dq``. ``A_i`` maps ``x`` to the motion of a
+gripper point ``p_i``: ``v + w x (p_i - centre) + R J_i dq`` (``J_i`` its point Jacobian from
+Pinocchio's frame Jacobian of its link, gripper frame).
+
+* Contact rows (least squares, weight ``contact_weight``): contact-surface points ``c_k`` on the
+  tangent plane ``(o_k, m_k)`` of their nearest object point, like the fit's point-to-plane rows.
+  In ``pull`` mode (the default) every surface is matched afresh in each step (each surface on
+  its own, :func:`isf.correspondence.match`), so pads that touch stay on the object and a pad
+  the repair lifts off is drawn back; ``hold`` keeps the points touching at the start.
+* Clearance rows (inequalities), two kinds:
+
+  - points sampled on every link's geometry, against the object tangent plane ``(a_i, n_i)``
+    that bounds them best (the largest height above the planes of the 6 nearest object
+    points, as in :mod:`isf.collision`; a closed mesh object is resampled densely for this);
+  - object points inside a convex geometry element, which must leave through the element's
+    nearest face (this catches an object edge poking into a link between its samples).
+
+  ``mu_i`` is ``margin`` for links without a contact surface and ``-contact_allowance`` for the
+  links that carry one (a fingertip may press into the object a little). Rows are used for
+  points within ``activation`` of their floor, the deepest ``max_rows`` per element. One slack
+  ``s_e`` per element (weight ``slack_weight``) keeps the QP feasible when a step cannot
+  remove all penetration at once.
+* Joint limits are hard bounds on ``q + dq``; every step is also held in a trust region.
+
+The best state visited is returned: least penetration first, then the smallest contact residual.
+Units inside the QP are millimetres (OSQP's absolute tolerances then mean micrometres).
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+import osqp
+import pinocchio as pin
+import scipy.sparse as sp
+import trimesh
+from scipy.spatial import cKDTree
+
+from .config import FitConfig
+from .collision import Plane
+from .correspondence import match
+from .exceptions import ConfigError, GripperDescriptionError
+from .gripper import Gripper
+from .lockstep import score_fit
+from .object_surface import ObjectSurface
+from .result import FitResult
+from .se3 import cross, exp_so3
+
+__all__ = ["ClearanceRepair", "RepairConfig", "RepairResult", "repair_penetration"]
+
+logger = logging.getLogger(__name__)
+
+_MM = 1000.0  # QP length unit: millimetres per metre
+_NEIGHBOURS = 6  # tangent planes tried per gripper point (as in isf.collision)
+_CONVEX_REACH = 0.003  # object points this close to a convex element (beyond its floor) get rows, m
+_OUTLIER_FACTOR = 3.0  # pull mode: pairs farther than this times the median distance are dropped
+_MAX_OBJECT_SAMPLES = 40000
+_MAX_PLANES = 128  # face planes kept per convex element  # dense resampling of a mesh object
+_NO_CONTACT = (np.empty((0, 3)), np.empty((0, 3)), np.empty((0, 3)), np.empty(0, dtype=int))
+
+
+@dataclass(frozen=True, kw_only=True)
+class RepairConfig:
+    """Parameters of :func:`repair_penetration` (SI units).
+
+    Attributes:
+        iterations: at most this many QP steps.
+        tolerance: stop once no row is violated by more than this, metres (so links without a
+            contact surface end at least ``margin - tolerance`` from the object).
+        margin: clearance asked of geometry of links without a contact surface, metres.
+        contact_allowance: depth the geometry of contact-surface links may reach, metres.
+        activation: gripper points closer to the object than this (plus ``margin``) get a
+            clearance row, metres; points farther away are ignored in that step.
+        contact_reach: contact-surface points within this distance of the object are kept on
+            it (``hold`` mode); the outlier floor of the pairs (``pull`` mode), metres.
+        max_normal_angle: a contact point is kept only when its normal is within this angle of
+            the reversed object normal, radians.
+        max_translation_step: trust region of the palm translation per step, per axis, metres.
+        max_rotation_step: trust region of the palm rotation per step, per axis, radians.
+        max_joint_step: trust region of each revolute joint per step, radians (prismatic
+            joints use ``max_translation_step``).
+        sample_spacing: spacing of the points sampled on each link geometry, metres.
+        max_samples: at most this many samples per geometry element (vertices come on top).
+        object_spacing: a closed mesh object is resampled this densely for the clearance
+            rows (its own points are kept too), metres.
+        slack_weight: weight of the squared penetration an element keeps after a step, per mm^2.
+        contact_weight: weight of each kept contact point's squared residual, per mm^2.
+        max_rows: at most this many clearance rows per geometry element and step (the
+            deepest points).
+        regularisation: weight of squared step size, in mm^2 of contact residual per
+            (mm of palm translation)^2; rotations and joints are weighted as if they moved
+            points ``lever`` metres away from the axis.
+        lever: length turning radians into millimetres for the regularisation, metres.
+        lock_palm: keep the palm pose; only the joints move.
+    """
+
+    iterations: int = 8
+    tolerance: float = 0.00025
+    margin: float = 0.0005
+    contact_allowance: float = 0.001
+    activation: float = 0.008
+    contact_reach: float = 0.004
+    max_normal_angle: float = 1.5
+    max_translation_step: float = 0.005
+    max_rotation_step: float = 0.1
+    max_joint_step: float = 0.2
+    sample_spacing: float = 0.003
+    max_samples: int = 200
+    object_spacing: float = 0.0015
+    slack_weight: float = 1e4
+    contact_weight: float = 1.0
+    max_rows: int = 12
+    regularisation: float = 1e-2
+    lever: float = 0.03
+    lock_palm: bool = False
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.iterations, int) or self.iterations < 1:
+            raise ConfigError(
+                f"RepairConfig.iterations must be an integer >= 1, got {self.iterations!r}")
+        for name in ("max_samples", "max_rows"):
+            value = getattr(self, name)
+            if not isinstance(value, int) or value < 1:
+                raise ConfigError(f"RepairConfig.{name} must be an integer >= 1, got {value!r}")
+        for name in ("tolerance", "margin", "contact_allowance", "regularisation"):
+            if not getattr(self, name) >= 0.0:
+                raise ConfigError(f"RepairConfig.{name} must be >= 0, got {getattr(self, name)!r}")
+        for name in ("activation", "contact_reach", "max_normal_angle", "max_translation_step",
+                     "max_rotation_step", "max_joint_step", "sample_spacing", "object_spacing",
+                     "slack_weight", "contact_weight", "lever"):
+            if not getattr(self, name) > 0.0:
+                raise ConfigError(f"RepairConfig.{name} must be > 0, got {getattr(self, name)!r}")
+
+
+class RepairResult(NamedTuple):
+    """Outcome of :meth:`ClearanceRepair.repair`.
+
+    Attributes:
+        T_object_gripper: repaired palm pose, (4, 4).
+        q: repaired joints, (n_joints,), within the joint limits.
+        depth_before: deepest estimated violation before repair, metres (how far a point is
+            below its allowed level: ``-margin`` for free links, ``contact_allowance`` for
+            contact links; 0 when none).
+        depth_after: the same after repair, metres.
+        iterations: QP steps taken.
+    """
+
+    T_object_gripper: np.ndarray
+    q: np.ndarray
+    depth_before: float
+    depth_after: float
+    iterations: int
+
+
+class _Rows(NamedTuple):
+    """Clearance row candidates: link index (M,), point in its link frame (M, 3), object-frame
+    direction it must move along (M, 3), violation ``floor - height`` (M,) metres, element (M,)."""
+
+    owner: np.ndarray
+    local: np.ndarray
+    normal: np.ndarray
+    violation: np.ndarray
+    element: np.ndarray
+
+
+class _ConvexElement:
+    """A closed convex geometry element: outward face planes ``n . x <= d`` (rows ``(n, d)``),
+    centre and radius of a bounding sphere, all in its link frame."""
+
+    def __init__(self, geom, element: int, owner: int, floor: float):
+        self.element, self.owner, self.floor = element, owner, float(floor)
+        self.planes = None
+        mesh = trimesh.Trimesh(np.asarray(geom.vertices, float), np.asarray(geom.faces, np.int64))
+        closed = mesh.is_watertight and mesh.is_winding_consistent
+        if not (len(mesh.faces) and closed and mesh.is_convex):
+            return
+        n = np.sign(mesh.volume) * mesh.face_normals
+        planes = np.c_[n, np.einsum("ij,ij->i", n, mesh.triangles[:, 0])]
+        # A subset of a convex element's face planes bounds a slightly larger polytope: keeping
+        # _MAX_PLANES spread-out normals (farthest-point order) errs on the safe side and keeps
+        # a finely tessellated sphere cheap (1280 faces -> 128 planes: ~0.2 mm larger at 12 mm).
+        self.planes = planes[_spread(n, _MAX_PLANES)]
+        self.centre = mesh.vertices.mean(axis=0)
+        self.radius = float(np.linalg.norm(mesh.vertices - self.centre, axis=1).max())
+
+
+def _spread(directions: np.ndarray, count: int) -> np.ndarray:
+    """Indices of at most ``count`` rows of ``directions`` (N, 3) in farthest-point order."""
+    if len(directions) <= count:
+        return np.arange(len(directions))
+    chosen = [0]
+    gap = np.linalg.norm(directions - directions[0], axis=1)
+    for _ in range(count - 1):
+        k = int(gap.argmax())
+        chosen.append(k)
+        gap = np.minimum(gap, np.linalg.norm(directions - directions[k], axis=1))
+    return np.array(chosen)
+
+
+class ClearanceRepair:
+    """Repairs penetrating grasps of one gripper on one object (set up once, then cheap).
+
+    Args:
+        gripper: the gripper; all of its ``geometries`` are kept out of the object.
+        obj: the object surface (points with outward normals), object frame.
+        config: repair parameters; default :class:`RepairConfig()`.
+        obstacles: half-spaces (:class:`isf.collision.Plane`, object frame) every link is also
+            kept ``margin`` above, e.g. ``[Plane.table(z)]``.
+
+    Raises:
+        GripperDescriptionError: the gripper has no link geometry.
+    """
+
+    def __init__(self, gripper: Gripper, obj: ObjectSurface, config: RepairConfig | None = None,
+                 *, obstacles: Sequence[Plane] = ()):
+        if not gripper.geometries:
+            raise GripperDescriptionError(gripper.name, [
+                "it has no link geometry to keep out of the object; give its links <collision> "
+                "elements"])
+        self.gripper, self.object, self.obstacles = gripper, obj, tuple(obstacles)
+        self.config = cfg = RepairConfig() if config is None else config
+        self._data = gripper.model.createData()
+        rng = np.random.default_rng(0)
+        self._surface_points, self._surface_normals = _dense_surface(obj, cfg.object_spacing, rng)
+        self._tree = cKDTree(self._surface_points)
+        model = gripper.model
+        links = list(dict.fromkeys(g.link for g in gripper.geometries))
+        link_of = np.array([links.index(g.link) for g in gripper.geometries], dtype=int)
+        self._frames = np.array([model.getFrameId(link) for link in links], dtype=int)
+        self._contact_frames = np.array([model.getFrameId(link) for link in gripper.contact_links],
+                                        dtype=int)
+        contact_links = set(gripper.contact_links)
+        floor = np.array([-cfg.contact_allowance if link in contact_links else cfg.margin
+                          for link in links])
+        # surface samples of every element, in their link frames
+        samples = [_surface_samples(g.vertices, g.faces, cfg.sample_spacing, cfg.max_samples, rng)
+                   for g in gripper.geometries]
+        self._points_link = np.concatenate(samples)
+        self._element = np.repeat(np.arange(len(samples)), [len(s) for s in samples])
+        self._owner = link_of[self._element]
+        self._floor = floor[self._owner]
+        # bounding spheres of the elements (to skip the ones far from the object)
+        vertices = [np.asarray(g.vertices, float) for g in gripper.geometries]
+        self._sphere_owner = link_of
+        self._sphere_centre = np.array([v.mean(axis=0) for v in vertices])
+        self._sphere_radius = np.array([np.linalg.norm(v - c, axis=1).max()
+                                        for v, c in zip(vertices, self._sphere_centre)])
+        convex = [_ConvexElement(g, e, link_of[e], floor[link_of[e]])
+                  for e, g in enumerate(gripper.geometries)]
+        self._convex = [c for c in convex if c.planes is not None]
+
+    # ------------------------------------------------------------ kinematics
+    def _frame_jacobians(self, q: np.ndarray, frames: np.ndarray):
+        """Rotations (F, 3, 3), origins (F, 3) and Jacobians (F, 6, n) of frames, gripper frame."""
+        model, data = self.gripper.model, self._data
+        pin.computeJointJacobians(model, data, q)
+        pin.updateFramePlacements(model, data)
+        n = model.nv
+        R = np.empty((len(frames), 3, 3))
+        p = np.empty((len(frames), 3))
+        J = np.empty((len(frames), 6, n))
+        for k, fid in enumerate(frames.tolist()):
+            R[k] = data.oMf[fid].rotation
+            p[k] = data.oMf[fid].translation
+            J[k] = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED).reshape(6, n)
+        return R, p, J
+
+    @staticmethod
+    def _points_and_rows(points_link, owner, R, p, J, T, centre, normals):
+        """Object-frame points (M, 3) and their rows ``n^T A`` (M, 6 + n) for object-frame normals.
+
+        ``A`` maps ``x = (v, w, dq)`` to the point's motion ``v + w x (p - centre) + R J dq``.
+        """
+        r = np.einsum("mij,mj->mi", R[owner], points_link)  # from the link origins, gripper frame
+        world = (r + p[owner]) @ T[:3, :3].T + T[:3, 3]
+        n_g = normals @ T[:3, :3]  # the normals in the gripper frame
+        Jv, Jw = J[owner, :3], J[owner, 3:]
+        rows_q = np.einsum("mi,min->mn", n_g, Jv) + np.einsum("mi,min->mn", cross(r, n_g), Jw)
+        rows = np.hstack([normals, cross(world - centre, normals), rows_q])
+        return world, rows
+
+    # ------------------------------------------------------------ object side
+    def _bounding_planes(self, world: np.ndarray):
+        """Signed height (M,) of points above the object, and the object plane (points, normals,
+        each (M, 3)) that bounds each. Points far from the surface (beyond ``activation`` plus
+        twice the object's spacing) and above its tangent plane get that plane only."""
+        obj = self.object
+        dist, nearest = obj.nearest(world)
+        planes_o, planes_n = obj.points[nearest].copy(), obj.normals[nearest].copy()
+        heights = np.einsum("mi,mi->m", world - planes_o, planes_n)
+        reach = self.config.activation + self.config.margin + 2.0 * obj.spacing
+        close = np.flatnonzero((heights < 0.0) | (dist < reach))
+        if len(close):
+            points, normals = self._surface_points, self._surface_normals
+            k = min(_NEIGHBOURS, len(points))
+            _, idx = self._tree.query(world[close], k=k, workers=1)
+            idx = idx.reshape(len(close), k)
+            h = np.einsum("mki,mki->mk", world[close, None, :] - points[idx], normals[idx])
+            best = idx[np.arange(len(close)), h.argmax(axis=1)]
+            heights[close] = h.max(axis=1)
+            planes_o[close], planes_n[close] = points[best], normals[best]
+        return heights, planes_o, planes_n
+
+    def penetration(self, T_object_gripper: np.ndarray, q: np.ndarray) -> float:
+        """Deepest violation of the clearance rows at a state, metres (0 when none).
+
+        See :attr:`RepairResult.depth_before` for what a violation is.
+        """
+        R, p, _ = self._frame_jacobians(np.asarray(q, float), self._frames)
+        violation = self._violations(np.asarray(T_object_gripper, float), R, p).violation
+        return float(max(0.0, violation.max())) if len(violation) else 0.0
+
+    # ------------------------------------------------------------------ repair
+    def repair(self, T_object_gripper: np.ndarray, q: np.ndarray, *,
+               contacts: str = "pull") -> RepairResult:
+        """Move palm and joints until no link penetrates the object (or the iterations run out).
+
+        Args:
+            T_object_gripper: fitted palm pose, (4, 4).
+            q: fitted joints, (n_joints,).
+            contacts: what the contact rows do: ``"pull"`` (default) matches every contact
+                surface to the object afresh in each step, like an ISF iteration, so pads that
+                touch stay on the object and pads the repair frees are drawn back; ``"hold"``
+                keeps only the points that touch at the start on the object; ``"none"`` only
+                pushes the gripper out.
+
+        Returns:
+            the :class:`RepairResult` of the best state visited: the least penetrating one
+            and, among those within ``tolerance``, the one with the smallest contact residual.
+            Its joints lie within the limits.
+
+        Raises:
+            ConfigError: an unknown ``contacts`` mode.
+        """
+        if contacts not in ("pull", "hold", "none"):
+            raise ConfigError(f"contacts must be 'pull', 'hold' or 'none', got {contacts!r}")
+        cfg, g = self.config, self.gripper
+        T = np.array(T_object_gripper, dtype=float)
+        q = g.clip(np.asarray(q, dtype=float))
+        before = held = None
+        last = np.inf  # contact residual of the previous step
+        best = ((np.inf, np.inf), T, q, np.inf)
+        steps = 0
+        for steps in range(cfg.iterations + 1):
+            R, p, J = self._frame_jacobians(q, self._frames)
+            rows = self._violations(T, R, p)
+            depth = float(max(0.0, rows.violation.max())) if len(rows.violation) else 0.0
+            before = depth if before is None else before
+            if contacts == "hold" and held is None:  # the held points: those touching at the start
+                held = self._contact_rows(T, q)[3]
+            contact = _NO_CONTACT if contacts == "none" else \
+                self._contact_rows(T, q, held, pull=contacts == "pull")
+            gaps = np.einsum("ij,ij->i", contact[0] - contact[1], contact[2])
+            residual = float(np.abs(gaps).mean()) if len(gaps) else 0.0
+            score = (max(depth - cfg.tolerance, 0.0), residual)
+            if score < best[0]:
+                best = (score, T, q, depth)
+            # pull mode goes on while the contacts still improve by a tenth of the tolerance
+            settled = depth <= cfg.tolerance and (
+                contacts != "pull" or residual >= last - cfg.tolerance / 10)
+            if settled or steps == cfg.iterations:
+                break
+            last = residual
+            active = self._active_rows(rows.violation, rows.element)
+            owner, local = rows.owner[active], rows.local[active]
+            world = (np.einsum("mij,mj->mi", R[owner], local) + p[owner]) @ T[:3, :3].T + T[:3, 3]
+            centre = contact[0].mean(axis=0) if len(contact[0]) else world.mean(axis=0)
+            c_rows = self._contact_jacobian_rows(T, q, contact, centre)
+            _, a_rows = self._points_and_rows(local, owner, R, p, J, T, centre, rows.normal[active])
+            x = self._solve(c_rows, contact, a_rows, rows.violation[active], rows.element[active],
+                            q)
+            if x is None:
+                break
+            T, q = self._apply(T, q, x, centre)
+        return RepairResult(best[1], best[2], float(before or 0.0), float(best[3]), steps)
+
+    def _near_elements(self, T: np.ndarray, R: np.ndarray, p: np.ndarray) -> np.ndarray:
+        """Indices of the gripper samples of elements that may be within ``activation`` of the
+        object (their bounding sphere is close to it, or their centre lies inside it)."""
+        obj, owner = self.object, self._sphere_owner
+        centres = np.einsum("eij,ej->ei", R[owner], self._sphere_centre) + p[owner]
+        centres = centres @ T[:3, :3].T + T[:3, 3]
+        dist, idx = obj.nearest(centres)
+        inside = np.einsum("ei,ei->e", centres - obj.points[idx], obj.normals[idx]) < 0.0
+        reach = self._sphere_radius + self.config.activation + self.config.margin \
+            + 2.0 * obj.spacing
+        near = np.flatnonzero(inside | (dist < reach))
+        return np.flatnonzero(np.isin(self._element, near))
+
+    def _violations(self, T: np.ndarray, R: np.ndarray, p: np.ndarray) -> _Rows:
+        """Every clearance row candidate at a state (link poses ``R``, ``p`` in the gripper frame).
+
+        Gripper surface samples below the object's tangent planes, object points inside a
+        convex gripper element (pushed out through the element's nearest face), and gripper
+        samples below an obstacle plane.
+        """
+        sel = self._near_elements(T, R, p)
+        owner, local = self._owner[sel], self._points_link[sel]
+        world = (np.einsum("mij,mj->mi", R[owner], local) + p[owner]) @ T[:3, :3].T + T[:3, 3]
+        heights, _, planes_n = self._bounding_planes(world)
+        parts = [_Rows(owner, local, planes_n, self._floor[sel] - heights, self._element[sel])]
+        reach = _CONVEX_REACH + self.config.margin
+        for c in self._convex:
+            T_link = T[:3, :3] @ R[c.owner]
+            centre = T_link @ c.centre + T[:3, :3] @ p[c.owner] + T[:3, 3]
+            near = self._tree.query_ball_point(centre, c.radius + reach)
+            if not near:
+                continue
+            local = (self._surface_points[near] - (T[:3, :3] @ p[c.owner] + T[:3, 3])) @ T_link
+            sd = local @ c.planes[:, :3].T - c.planes[:, 3]
+            face = sd.argmax(axis=1)
+            depth = sd[np.arange(len(local)), face]
+            keep = depth < c.floor + reach
+            if not keep.any():
+                continue
+            face, depth, local = face[keep], depth[keep], local[keep]
+            n_link = c.planes[face, :3]
+            foot = local - depth[:, None] * n_link  # where the object point must leave the element
+            k = len(foot)
+            parts.append(_Rows(np.full(k, c.owner), foot, -(n_link @ T_link.T), c.floor - depth,
+                               np.full(k, c.element)))
+        if self.obstacles:  # every sample of every element stays above each plane
+            owner, local = self._owner, self._points_link
+            world = (np.einsum("mij,mj->mi", R[owner], local) + p[owner]) @ T[:3, :3].T + T[:3, 3]
+            for plane in self.obstacles:
+                parts.append(_Rows(owner, local, np.broadcast_to(plane.normal, local.shape),
+                                   self.config.margin - plane.height(world), self._element))
+        return _Rows(*(np.concatenate(v) for v in zip(*parts)))
+
+    def _active_rows(self, violation: np.ndarray, element: np.ndarray) -> np.ndarray:
+        """Rows to use: within ``activation`` of their floor, at most ``max_rows`` per element (the
+        most violating ones)."""
+        cfg = self.config
+        near = np.flatnonzero(violation > -cfg.activation)
+        if not len(near):
+            return near
+        order = near[np.lexsort((-violation[near], element[near]))]
+        element = element[order]
+        first = np.r_[0, np.flatnonzero(np.diff(element)) + 1]
+        rank = np.arange(len(order)) - np.repeat(first, np.diff(np.r_[first, len(order)]))
+        return order[rank < cfg.max_rows]
+
+    def _contact_rows(self, T: np.ndarray, q: np.ndarray, held: np.ndarray | None = None,
+                      pull: bool = False):
+        """Contact points kept on (or drawn to) the object, with their nearest object planes.
+
+        Args:
+            T, q: the state.
+            held: indices of the contact points to hold; None selects them.
+            pull: select every contact point that matches the object like a fit's pairs
+                (:func:`isf.correspondence.match`, surface by surface, with ``contact_reach`` as
+                the outlier floor); else those within ``contact_reach`` whose normals face the
+                object normal.
+
+        Returns:
+            (object-frame points (K, 3), plane points (K, 3), plane normals (K, 3), indices (K,)).
+        """
+        cfg, g, obj = self.config, self.gripper, self.object
+        points, normals = g.contact_points(q)
+        points = points @ T[:3, :3].T + T[:3, 3]
+        normals = normals @ T[:3, :3].T
+        if pull and held is None:  # each surface on its own: a pad that lost contact is drawn back
+            source, target = [], []
+            for k in range(len(g.surfaces)):
+                mine = np.flatnonzero(g.point_surface == k)
+                pairs = match(obj, points[mine], outlier_factor=_OUTLIER_FACTOR,
+                              outlier_floor=cfg.contact_reach, reject_duplicates=True,
+                              normals=normals[mine], max_normal_angle=cfg.max_normal_angle)
+                source.append(mine[pairs.source])
+                target.append(pairs.target)
+            source, target = np.concatenate(source), np.concatenate(target)
+            return points[source], obj.points[target], obj.normals[target], source
+        dist, idx = obj.nearest(points)
+        if held is None:
+            cos = np.einsum("ij,ij->i", normals, obj.normals[idx])
+            facing = cos <= -np.cos(cfg.max_normal_angle)
+            held = np.flatnonzero((dist <= cfg.contact_reach) & facing)
+        return points[held], obj.points[idx[held]], obj.normals[idx[held]], held
+
+    def _contact_jacobian_rows(self, T, q, contact, centre):
+        """Rows ``m^T A`` (K, 6 + n) of the kept contact points."""
+        g = self.gripper
+        points, _, plane_n, sel = contact
+        if not len(sel):
+            return np.empty((0, 6 + g.n_joints))
+        R, p, J = self._frame_jacobians(q, self._contact_frames)
+        owner = g.point_link[sel]
+        return self._points_and_rows(g.points_link[sel], owner, R, p, J, T, centre, plane_n)[1]
+
+    def _solve(self, c_rows, contact, a_rows, violation, element, q) -> np.ndarray | None:
+        """One QP step ``x = (v, w, dq)`` in SI units, or None when OSQP fails."""
+        cfg, g = self.config, self.gripper
+        n = g.n_joints
+        nx = 6 + n
+        m = len(a_rows)
+        # Millimetre units: x_mm = x * scale (v in mm, w in rad, revolute dq in rad, prismatic in
+        # mm); a row a (metres of height per SI unit of x) becomes a * unit (mm per unit of x_mm).
+        scale = np.r_[np.full(3, _MM), np.ones(3), np.where(g.revolute, 1.0, _MM)]
+        unit = _MM / scale
+        points, plane_o, plane_n, _ = contact
+        k = len(points)
+        P = np.zeros((nx, nx))
+        qv = np.zeros(nx)
+        if k:
+            B = c_rows * unit  # mm of residual per unit of x_mm
+            res = _MM * np.einsum("ij,ij->i", points - plane_o, plane_n)
+            P += 2.0 * cfg.contact_weight * B.T @ B
+            qv += 2.0 * cfg.contact_weight * B.T @ res
+        lever_mm = cfg.lever * _MM
+        reg = np.r_[np.full(3, 1.0), np.full(3, lever_mm**2),
+                    np.where(g.revolute, lever_mm**2, 1.0)] * cfg.regularisation
+        P += 2.0 * np.diag(reg)
+        # one slack per geometry element: n^T A x + s_e >= violation, s_e >= 0 (built dense: small)
+        elements, which = np.unique(element, return_inverse=True)
+        ns = len(elements)
+        H = np.zeros((nx + ns, nx + ns))
+        H[:nx, :nx] = P
+        H[nx:, nx:] = 2.0 * cfg.slack_weight * np.eye(ns)
+        q_vec = np.r_[qv, np.zeros(ns)]
+        A = np.zeros((m + ns + nx, nx + ns))
+        A[:m, :nx] = a_rows * unit
+        A[np.arange(m), nx + which] = 1.0
+        A[m:, :] = np.eye(nx + ns)[np.r_[nx:nx + ns, 0:nx]]
+        step = np.r_[np.full(3, cfg.max_translation_step * _MM), np.full(3, cfg.max_rotation_step),
+                     np.where(g.revolute, cfg.max_joint_step, cfg.max_translation_step * _MM)]
+        if cfg.lock_palm:
+            step[:6] = 0.0
+        lo = np.r_[-step[:6], np.minimum(0.0, np.maximum(-step[6:], (g.lower - q) * scale[6:]))]
+        hi = np.r_[step[:6], np.maximum(0.0, np.minimum(step[6:], (g.upper - q) * scale[6:]))]
+        lower = np.r_[violation * _MM, np.zeros(ns), lo]
+        upper = np.r_[np.full(m, np.inf), np.full(ns, np.inf), hi]
+        P = sp.csc_matrix(np.triu(H))
+        A = sp.csc_matrix(A)
+        solver = osqp.OSQP()
+        solver.setup(P, q_vec, A, lower, upper, verbose=False, eps_abs=1e-3,
+                     eps_rel=1e-3, max_iter=4000, polishing=False)
+        result = solver.solve(raise_error=False)
+        status = getattr(result.info, "status", "")
+        # An inexact step (iteration cap) is still a descent direction for Gauss-Newton; the
+        # caller keeps the best state it visits.
+        failed = result.x is None or not np.all(np.isfinite(result.x[:nx]))
+        if failed or "infeasible" in str(status).lower():
+            logger.debug("clearance QP failed: %s", status)
+            return None
+        x = result.x[:nx] / scale
+        if cfg.lock_palm:
+            x[:6] = 0.0  # OSQP meets zero bounds only to its tolerance
+        return x
+
+    def _apply(self, T, q, x, centre):
+        """Apply a step: rotate by ``w`` about ``centre``, translate by ``v``, add ``dq``."""
+        g = self.gripper
+        Rw = exp_so3(x[3:6])
+        T_new = np.eye(4)
+        T_new[:3, :3] = Rw @ T[:3, :3]
+        T_new[:3, 3] = Rw @ (T[:3, 3] - centre) + centre + x[:3]
+        return T_new, g.clip(q + x[6:])
+
+
+def _dense_surface(obj: ObjectSurface, spacing: float, rng: np.random.Generator):
+    """The object's points and normals, plus area-uniform samples of its mesh at ``spacing`` when
+    it is a closed, outward mesh (a point cloud or an open mesh gives its own points only)."""
+    if not obj.is_mesh or spacing >= obj.spacing:
+        return obj.points, obj.normals
+    mesh = trimesh.Trimesh(np.asarray(obj.mesh_vertices, float),
+                           np.asarray(obj.mesh_faces, np.int64), process=False, validate=False)
+    if not (mesh.is_watertight and mesh.is_winding_consistent and mesh.volume > 0):
+        return obj.points, obj.normals
+    count = int(np.clip(mesh.area / spacing**2, 1, _MAX_OBJECT_SAMPLES))
+    points, face = trimesh.sample.sample_surface(mesh, count, seed=int(rng.integers(2**31)))
+    normals = mesh.face_normals[face]
+    return np.concatenate([obj.points, points]), np.concatenate([obj.normals, normals])
+
+
+def _surface_samples(vertices, faces, spacing, max_points, rng) -> np.ndarray:
+    """About one point per ``spacing^2`` of area (at most ``max_points``) plus the vertices of a
+    mesh with at most ``max_points`` of them (box corners), (M, 3)."""
+    mesh = trimesh.Trimesh(np.asarray(vertices, float), np.asarray(faces, np.int64), process=False,
+                           validate=False)
+    if mesh.area <= 0.0:
+        return np.asarray(vertices, float)
+    count = int(np.clip(mesh.area / spacing**2, 1, max_points))
+    samples, _ = trimesh.sample.sample_surface(mesh, count, seed=int(rng.integers(2**31)))
+    corners = mesh.vertices if len(mesh.vertices) <= max_points else np.empty((0, 3))
+    return np.concatenate([samples, corners])
+
+
+def repair_penetration(gripper: Gripper, obj: ObjectSurface, fit_result: FitResult,
+                       config: RepairConfig | None = None, *, fit_config: FitConfig | None = None,
+                       repairer: ClearanceRepair | None = None,
+                       contacts: str = "pull") -> FitResult:
+    """Repair a fitted grasp whose links penetrate the object (see the module docs).
+
+    Args:
+        gripper: the gripper that was fitted.
+        obj: the object it was fitted to.
+        fit_result: the fit (:func:`isf.fit`).
+        config: repair parameters (ignored when ``repairer`` is given).
+        fit_config: the fit's parameters, for re-scoring the repaired state (default
+            ``FitConfig()``).
+        repairer: a :class:`ClearanceRepair` already built for this gripper and object (saves
+            the set-up).
+        contacts: ``"pull"``, ``"hold"`` or ``"none"`` (see :meth:`ClearanceRepair.repair`).
+
+    Returns:
+        a :class:`FitResult` at the repaired pose and joints, re-scored like a fit's final state
+        (:func:`isf.lockstep.score_fit`); ``fit_result`` itself when nothing penetrated.
+
+    Raises:
+        GripperDescriptionError: the gripper has no link geometry.
+        ConfigError: an unknown ``contacts`` mode.
+    """
+    repairer = ClearanceRepair(gripper, obj, config) if repairer is None else repairer
+    out = repairer.repair(fit_result.T_object_gripper, fit_result.q, contacts=contacts)
+    if out.iterations == 0:
+        return fit_result
+    return score_fit(gripper, obj, out.T_object_gripper, out.q, fit_config or FitConfig(),
+                     fit_result.status, fit_result.history, fit_result.time)

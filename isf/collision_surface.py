@@ -1,0 +1,48 @@
+"""A signed-distance estimate from the tangent planes of nearby surface points.
+
+A query point's signed distance is the largest of ``(p - o_k) . n_k`` over its
+:data:`NEIGHBOURS` nearest surface points ``o_k`` with outward normals ``n_k``: a point is
+inside only when it lies below every nearby tangent plane (see :mod:`isf.collision`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+NEIGHBOURS = 6  # tangent planes of the nearest surface points a point must lie below to be inside
+
+
+class TangentPlanes:
+    """Surface points (M, 3) with outward unit normals (M, 3), ``spacing`` metres apart."""
+
+    def __init__(self, points: np.ndarray, normals: np.ndarray, spacing: float):
+        self.points = np.ascontiguousarray(points, dtype=float)
+        self.normals = np.ascontiguousarray(normals, dtype=float)
+        self.spacing = float(spacing)
+        """Typical distance between neighbouring points, metres."""
+        self.tree = cKDTree(self.points)
+
+    def evaluate(self, query: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Signed distance of points (M, 3), metres (M,), negative inside; the normal of the
+        tangent plane that sets it (its gradient), (M, 3); the distance to the nearest surface
+        point, metres (M,), and that point, (M, 3)."""
+        if len(query) == 0:
+            return np.empty(0), np.empty((0, 3)), np.empty(0), np.empty((0, 3))
+        k = min(NEIGHBOURS, len(self.points))
+        dist, idx = self.tree.query(query, k=k, workers=1)
+        idx, dist = idx.reshape(len(query), k), dist.reshape(len(query), k)
+        normals = self.normals[idx]
+        heights = np.einsum("mki,mki->mk", query[:, None, :] - self.points[idx], normals)
+        best = heights.argmax(axis=1)
+        rows = np.arange(len(query))
+        return heights[rows, best], normals[rows, best], dist[:, 0], self.points[idx[:, 0]]
+
+    def signed_distance(self, query: np.ndarray) -> np.ndarray:
+        """Estimated signed distance of points (M, 3), metres (M,), negative inside."""
+        return self.evaluate(query)[0]
+
+    def depth(self, query: np.ndarray) -> float:
+        """Deepest of the points (M, 3) below the surface, metres (0 if none)."""
+        sd = self.signed_distance(query)
+        return float(max(0.0, -sd.min())) if len(sd) else 0.0
