@@ -143,12 +143,38 @@ class Timing:
         return f"{med} ({low}-{high}, n={self.n}{cut})"
 
 
-def plan_once(gripper, obj, samples: int, seed: int, config=None) -> dict:
-    """One ``isf.plan`` with the regret sampler: wall and CPU time, stage times, counts, fit quality."""
+def default_batch_size() -> int:
+    """The ``batch_size`` that ``isf.plan`` uses when none is given."""
+    import inspect
+
     import isf
 
+    return int(inspect.signature(isf.plan).parameters["batch_size"].default)
+
+
+def plan_once(gripper, obj, samples: int, seed: int, config=None, batch_size: int | None = None,
+              sampler="regret") -> dict:
+    """One ``isf.plan``: wall and CPU time, stage times, counts, fit quality.
+
+    Args:
+        gripper, obj, samples, seed, config: passed to ``isf.plan``.
+        batch_size: samples fitted in lockstep (None: ``isf.plan``'s default; 1: the paper's
+            strictly sequential loop).
+        sampler: a sampler name or instance (default the regret bandit).
+
+    Returns:
+        a dict of floats: ``t_total`` (``PlanStats.total_time``, s), ``cpu`` (process time around
+        the call, s), ``setup``/``fit``/``collision`` (stage times, s), ``free`` and ``valid``
+        (counts), ``per_free`` (s per collision-free grasp), ``error`` (mean
+        ``FitResult.mean_distance`` of the collision-free grasps, m; NaN when none) and
+        ``iterations`` (mean ISF iterations per sample).
+    """
+    import isf
+
+    kwargs = {} if batch_size is None else {"batch_size": batch_size}
     cpu = time.process_time()
-    result = isf.plan(gripper, obj, samples=samples, sampler="regret", seed=seed, config=config)
+    result = isf.plan(gripper, obj, samples=samples, sampler=sampler, seed=seed, config=config,
+                      **kwargs)
     cpu = time.process_time() - cpu
     s = result.stats
     free = result.collision_free_grasps()
@@ -465,6 +491,13 @@ def command_line() -> str:
     return "python " + " ".join([os.path.relpath(sys.argv[0], REPO), *sys.argv[1:]])
 
 
+#: Printed in every report: how to read wall times measured on a shared machine.
+NOISE_NOTE = ("Wall times on a shared machine are noisy: they include waiting for a core while "
+              "other jobs run (compare the load averages at the start and the end); the process "
+              "CPU time beside them does not, so prefer it, and the ratios measured in the same "
+              "process, when comparing figures.")
+
+
 def finish(title: str, sections: Sequence[str], started: float, header: str,
            out: str | None) -> str:
     """Print (and optionally write) the report: title, machine note, sections, run time."""
@@ -478,6 +511,7 @@ def finish(title: str, sections: Sequence[str], started: float, header: str,
         f"## {title}",
         f"Command: `{command_line()}`",
         f"Machine: {header}",
+        NOISE_NOTE,
         *sections,
         *warning,
         f"Wall time of the whole script: {time.perf_counter() - started:.0f} s; "

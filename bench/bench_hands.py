@@ -18,12 +18,15 @@ collision-free grasps (``FitResult.mean_distance``), ``t_total`` (``PlanStats.to
 time per collision-free grasp; medians over ``--repeats`` runs (seeds 0, 1, ...) cut by
 ``--budget`` seconds per configuration (at least one run).
 
-``--finger-damping`` sets ``FitConfig.finger_damping`` for both hands (a diagnostic: the default
-config's finger QP may fail to converge on a 16-joint hand; the run then reports the failures).
+``--batch-size`` sets ``isf.plan``'s ``batch_size`` (default: its default; 1 = the paper's
+sequential loop); ``--objects N`` runs the first N objects only; ``--quick``: one object, 15
+samples, one run. ``--finger-damping`` sets ``FitConfig.finger_damping`` for both hands (a
+diagnostic: the default config's finger QP may fail to converge on a 16-joint hand; the run then
+reports the failures).
 
 Run from the repository root:
     python bench/bench_hands.py [--quick] [--repeats 3] [--budget 20] [--hands allegro-right]
-                                [--finger-damping 1e-6]
+                                [--objects 1] [--batch-size 1] [--finger-damping 1e-6]
 """
 
 from __future__ import annotations
@@ -41,6 +44,7 @@ import isf  # noqa: E402
 from isf import assets  # noqa: E402
 
 SAMPLES = 60
+QUICK_SAMPLES = 15
 MAX_POINTS = 2000
 YCB_OBJECTS = ("ycb:Banana", "ycb:MustardBottle", "ycb:PottedMeatCan")
 SHAPE_OBJECTS = ("shape:cylinder", "shape:box", "shape:sphere")
@@ -117,7 +121,7 @@ def tagged_allegro(folder: Path) -> isf.Gripper:
 # --------------------------------------------------------------------------- benchmark
 
 
-def load_objects(quick: bool) -> tuple[list[isf.ObjectSurface], str]:
+def load_objects(count: int) -> tuple[list[isf.ObjectSurface], str]:
     """The benchmark objects and a note on where they came from."""
     why = "objects missing"
     try:
@@ -133,15 +137,16 @@ def load_objects(quick: bool) -> tuple[list[isf.ObjectSurface], str]:
                 f"shapes scaled {SHAPE_SCALE:g}x")
         objects = [isf.open_object(s, scale=SHAPE_SCALE, max_points=MAX_POINTS)
                    for s in SHAPE_OBJECTS]
-    return (objects[:1] if quick else objects), note
+    return objects[:count], note
 
 
 def bench(hand: str, gripper, obj, args) -> dict:
     config = None if args.finger_damping is None else isf.FitConfig(
         finger_damping=args.finger_damping)
-    runs, failed = _common.run_repeats(lambda seed: _common.plan_once(gripper, obj, SAMPLES, seed, config),
-                                       args.repeats, _common.budget_or_none(args),
-                                       catch=(isf.ISFError,))
+    runs, failed = _common.run_repeats(
+        lambda seed: _common.plan_once(gripper, obj, args.samples, seed, config,
+                                       batch_size=args.batch_size),
+        args.repeats, _common.budget_or_none(args), catch=(isf.ISFError,))
     row = _common.median_row(runs, failed, args.repeats)
     row["hand"], row["object"], row["points"] = hand, obj.name, obj.n_points
     print(f"#   {hand} on {obj.name}: t_total (s) {_common.timing_cell(row)}, "
@@ -155,7 +160,7 @@ def report(rows: list[dict], note: str, args, deadline) -> list[str]:
     body = [[r["hand"], r["object"], r["points"],
              _common.timing_cell(r) if "failed" in r else "skipped (deadline)"] + ["-"] * 9
             if "timing" not in r else [
-        r["hand"], r["object"], r["points"], f"{r['free']:g}/{SAMPLES}", f"{r['valid']:g}",
+        r["hand"], r["object"], r["points"], f"{r['free']:g}/{args.samples}", f"{r['valid']:g}",
         _common.fmt(r["error"] * 1e3), _common.timing_cell(r), _common.fmt(r["cpu"]),
         _common.fmt(r["per_free"] * 1e3), f"{r['fit']:.2f} / {r['collision']:.2f}",
         f"{r['iterations']:.0f}", f"<= {targets[r['hand']]:g}",
@@ -172,7 +177,8 @@ def report(rows: list[dict], note: str, args, deadline) -> list[str]:
          "ISF iterations per sample", "target t_total (s)", "met?"], body)
     damping = ("the default `FitConfig`" if args.finger_damping is None else
                f"`FitConfig(finger_damping={args.finger_damping:g})` (NOT the default)")
-    text = (f"{SAMPLES} samples, regret sampler, {damping}, objects: {note}, at most "
+    text = (f"{args.samples} samples, regret sampler, batch size {args.batch_size}, {damping}, "
+            f"objects: {note}, at most "
             f"{MAX_POINTS} points; "
             f"up to {args.repeats} runs per row (budget {args.budget:g} s). CPU time: process "
             "time around `isf.plan`. Allegro: tagged copy of "
@@ -188,13 +194,22 @@ def main() -> None:
     parser.add_argument("--finger-damping", type=float, default=None,
                         help="FitConfig.finger_damping for both hands (default: FitConfig's); a "
                              "diagnostic for finger QPs that fail to converge")
+    parser.add_argument("--batch-size", type=int, default=_common.default_batch_size(),
+                        help="batch_size of isf.plan (default: its default, "
+                             f"{_common.default_batch_size()}; 1 = the paper's sequential loop)")
+    parser.add_argument("--objects", type=int, default=len(YCB_OBJECTS),
+                        help=f"how many of the benchmark objects to run, in order (default "
+                             f"{len(YCB_OBJECTS)}; --quick: 1)")
+    parser.add_argument("--samples", type=int, default=SAMPLES,
+                        help=f"samples per plan (default {SAMPLES}; --quick: {QUICK_SAMPLES})")
     args = parser.parse_args()
     if args.quick:
-        args.repeats = min(args.repeats, 1)
+        args.repeats, args.objects = min(args.repeats, 1), 1
+        args.samples = min(args.samples, QUICK_SAMPLES)
     started = time.perf_counter()
     header = _common.machine_description()
     deadline = _common.Deadline(args.deadline)
-    objects, note = load_objects(args.quick)
+    objects, note = load_objects(args.objects)
     rows = []
     with tempfile.TemporaryDirectory(prefix="isf-bench-allegro-") as folder:
         makers = {"three-finger": lambda: isf.load_gripper("three-finger"),

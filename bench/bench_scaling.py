@@ -12,8 +12,12 @@ set-up (sampler k-means, collision checker); loading the object (and building it
 outside it and listed separately. Medians over ``--repeats`` runs with seeds 0, 1, ...; a
 configuration stops repeating once its runs took ``--budget`` seconds (at least one run), and the
 tables show how many runs each median has. The growth ratio is t_total(200k) / t_total(2k).
+``--batch-size`` sets ``isf.plan``'s ``batch_size`` (default: its default; 1 = the paper's
+sequential loop). ``--quick``: 2k and 10k points, 15 samples, one run each.
 
-Run from the repository root:  python bench/bench_scaling.py [--quick] [--repeats 3] [--budget 20]
+Run from the repository root:
+    python bench/bench_scaling.py [--quick] [--repeats 3] [--budget 20] [--batch-size 1]
+                                  [--sizes 2000,200000] [--sample-counts 60]
 """
 
 from __future__ import annotations
@@ -31,7 +35,7 @@ OBJECT = "bunny"
 SIZES = (1_000, 2_000, 10_000, 50_000, 200_000)
 SAMPLES = (15, 30, 60, 120, 240)
 BASE_SIZE, BASE_SAMPLES = 2_000, 60
-QUICK_SIZES, QUICK_SAMPLES = (2_000, 200_000), (15, 60)
+QUICK_SIZES, QUICK_SAMPLES, QUICK_BASE_SAMPLES = (2_000, 10_000), (15,), 15
 
 
 class Objects:
@@ -58,7 +62,8 @@ class Objects:
 
 
 def measure(gripper, obj, samples: int, args) -> dict:
-    runs, failed = _common.run_repeats(lambda seed: _common.plan_once(gripper, obj, samples, seed),
+    runs, failed = _common.run_repeats(lambda seed: _common.plan_once(gripper, obj, samples, seed,
+                                                                      batch_size=args.batch_size),
                                        args.repeats, _common.budget_or_none(args),
                                        catch=(isf.ISFError,))
     row = _common.median_row(runs, failed, args.repeats)
@@ -67,22 +72,22 @@ def measure(gripper, obj, samples: int, args) -> dict:
     return row
 
 
-def plan_order(sizes, sample_counts) -> list[tuple[int, int]]:
+def plan_order(sizes, sample_counts, base_samples: int) -> list[tuple[int, int]]:
     """(points, samples) configurations, most important first: the 2k/60 baseline, the largest
     object (for the growth ratio), then the other sizes, then the other sample counts."""
-    order = [(BASE_SIZE, BASE_SAMPLES), (max(sizes), BASE_SAMPLES)]
-    order += [(n, BASE_SAMPLES) for n in sizes] + [(BASE_SIZE, k) for k in sample_counts]
+    order = [(BASE_SIZE, base_samples), (max(sizes), base_samples)]
+    order += [(n, base_samples) for n in sizes] + [(BASE_SIZE, k) for k in sample_counts]
     return list(dict.fromkeys(order))
 
 
 SKIPPED = "skipped (deadline)"
 
 
-def size_table(rows: list[tuple[int, float, dict]]) -> str:
+def size_table(rows: list[tuple[int, float, dict]], base_samples: int) -> str:
     body = [[n, _common.fmt(load), SKIPPED if r is None else _common.timing_cell(r)] + ["-"] * 7
             if r is None or "timing" not in r else [
         n, _common.fmt(load), _common.timing_cell(r), _common.fmt(r["cpu"]), f"{r['setup']:.3f}",
-        f"{r['fit']:.3f}", f"{r['collision']:.3f}", f"{r['free']:g}/{BASE_SAMPLES}",
+        f"{r['fit']:.3f}", f"{r['collision']:.3f}", f"{r['free']:g}/{base_samples}",
         _common.fmt(r["per_free"] * 1e3), _common.fmt(r["error"] * 1e3),
     ] for n, load, r in rows]
     body.append([f"{_common.PAPER['vertices']:.0f} (paper average, Matlab)", "-",
@@ -108,14 +113,14 @@ def samples_table(rows: list[tuple[int, dict]]) -> str:
          "collision-free", "ms per collision-free", "set-up (s)"], body)
 
 
-def targets(results: dict, sizes, base_n: int, largest_n: int) -> str:
+def targets(results: dict, sizes, base_n: int, largest_n: int, base_samples: int) -> str:
     t, paper = _common.TARGETS, _common.PAPER
     ok = {key: row for key, row in results.items() if "timing" in row}
-    base = ok.get((BASE_SIZE, BASE_SAMPLES))
-    large = ok.get((max(sizes), BASE_SAMPLES))
+    base = ok.get((BASE_SIZE, base_samples))
+    large = ok.get((max(sizes), base_samples))
     rows = []
     if base is not None:
-        rows += [[f"t_total, 60 samples, {base_n} points (s)", f"{base['t_total']:.3f}",
+        rows += [[f"t_total, {base_samples} samples, {base_n} points (s)", f"{base['t_total']:.3f}",
                   paper["t_total_60"], f"<= {t['t_total_60_paper_s']}",
                   _common.verdict(base["t_total"], t["t_total_60_paper_s"])],
                  ["ms per collision-free grasp (same runs)", _common.fmt(base["per_free"] * 1e3),
@@ -123,7 +128,8 @@ def targets(results: dict, sizes, base_n: int, largest_n: int) -> str:
                   _common.verdict(base["per_free"] * 1e3, t["ms_per_free_paper"])]]
     if base is not None and large is not None and largest_n != base_n:
         growth = large["t_total"] / base["t_total"]
-        rows.append([f"growth t_total({largest_n} pts) / t_total({base_n} pts), 60 samples",
+        rows.append([f"growth t_total({largest_n} pts) / t_total({base_n} pts), "
+                     f"{base_samples} samples",
                      f"{growth:.2f}", "-", f"<= {t['growth_200k_2k']}",
                      _common.verdict(growth, t["growth_200k_2k"])])
         rows.append(["same, on CPU time (less sensitive to a shared machine)",
@@ -133,8 +139,26 @@ def targets(results: dict, sizes, base_n: int, largest_n: int) -> str:
 
 def main() -> None:
     parser = _common.base_parser(__doc__.splitlines()[0], repeats=3, budget=20.0)
+    parser.add_argument("--batch-size", type=int, default=_common.default_batch_size(),
+                        help="batch_size of isf.plan (default: its default, "
+                             f"{_common.default_batch_size()}; 1 = the paper's sequential loop)")
+    parser.add_argument("--sizes", default=None,
+                        help="comma-separated object sizes, points (default "
+                             + ",".join(map(str, SIZES)) + f"; must include {BASE_SIZE})")
+    parser.add_argument("--sample-counts", default=None,
+                        help="comma-separated sample counts of the samples sweep (default "
+                             + ",".join(map(str, SAMPLES)) + ")")
     args = parser.parse_args()
     sizes, sample_counts = (QUICK_SIZES, QUICK_SAMPLES) if args.quick else (SIZES, SAMPLES)
+    try:
+        sizes = tuple(int(n) for n in args.sizes.split(",")) if args.sizes else sizes
+        sample_counts = (tuple(int(k) for k in args.sample_counts.split(","))
+                         if args.sample_counts else sample_counts)
+    except ValueError:
+        parser.error("--sizes and --sample-counts take comma-separated integers")
+    if BASE_SIZE not in sizes:
+        parser.error(f"--sizes must include the baseline {BASE_SIZE}")
+    base_samples = QUICK_BASE_SAMPLES if args.quick else BASE_SAMPLES
     if args.quick:
         args.repeats = min(args.repeats, 1)
     started = time.perf_counter()
@@ -143,7 +167,7 @@ def main() -> None:
     gripper = isf.load_gripper(GRIPPER)
     objects = Objects()
     results: dict[tuple[int, int], dict] = {}
-    for n, k in plan_order(sizes, sample_counts):
+    for n, k in plan_order(sizes, sample_counts, base_samples):
         if deadline.allows(f"{n} points x {k} samples"):
             results[(n, k)] = measure(gripper, objects.get(n)[0], k, args)
 
@@ -153,18 +177,20 @@ def main() -> None:
             return obj.n_points, load
         return n, float("nan")
 
-    by_size = [(*loaded(n), results.get((n, BASE_SAMPLES))) for n in sizes]
+    by_size = [(*loaded(n), results.get((n, base_samples))) for n in sizes]
     by_samples = [(k, results.get((BASE_SIZE, k))) for k in sample_counts]
     base_n, largest_n = loaded(BASE_SIZE)[0], loaded(max(sizes))[0]
     note = (f"Gripper `{GRIPPER}`, object: {OBJECT} scaled to a "
             f"{_common.PAPER_GRIPPER_MIDDLE_EXTENT * 1e3:g} mm middle extent, regret sampler, "
-            f"seeds 0..n-1, up to {args.repeats} runs per configuration (budget "
+            f"batch size {args.batch_size}, seeds 0..n-1, up to {args.repeats} runs per "
+            f"configuration (budget "
             f"{args.budget:g} s). CPU time: process time around `isf.plan` (wall time minus "
             "waiting for a core on a shared machine).")
     sections = ["### Planning time vs. object size and samples", note,
-                f"**vs. object size** ({BASE_SAMPLES} samples):", size_table(by_size),
+                f"**vs. object size** ({base_samples} samples):", size_table(by_size, base_samples),
                 f"**vs. samples** ({base_n} points):", samples_table(by_samples),
-                "**Targets:**", targets(results, sizes, base_n, largest_n), *deadline.note(),
+                "**Targets:**", targets(results, sizes, base_n, largest_n, base_samples),
+                *deadline.note(),
                 *_common.failure_notes([(f"{n} points x {k} samples", row)
                                         for (n, k), row in results.items()])]
     _common.finish("bench_scaling: planning time vs. object size and samples", sections,

@@ -1,127 +1,201 @@
 """Reproduce the paper's Table I: 60 samples per object with the paper's gripper.
 
-Objects: the Stanford bunny and dragon (genesis-world wheel), the pybullet duck,
-mug and random objects, the robosuite household meshes, and the YCB objects of
-``shared/data/ycb`` when present (all fetched or read by :mod:`isf.assets`,
-never shipped). Each object is scaled, as the paper did, "to fit into the
-gripper range": uniformly, so that the middle of its three bounding-box extents
-is 25 mm (the paper gripper opens 10-30 mm), and is sampled to at most 2000
-points (the paper's objects had 740-3971 vertices).
+Objects (default): the Stanford bunny and dragon (genesis-world wheel), the pybullet duck and the
+YCB Banana, Scissors and PowerDrill (``shared/data/ycb`` or ``ISF_YCB_DIR``), all fetched or read by
+:mod:`isf.assets`, never shipped. Each object is scaled, as the paper did, "to fit into the
+gripper range": uniformly, so that the middle of its three bounding-box extents is 25 mm (the
+paper gripper opens 10-30 mm), and is sampled to at most 2000 points (the paper's objects had
+740-3971 vertices). Sampler: the regret bandit with the paper's uniformly random orientations.
 
-Run:  python bench/table1.py [--repeats 5] [--objects bunny,dragon,...] [--out docs/table1.md]
+Every object runs once per batch size of ``--batch-sizes`` (default: ``isf.plan``'s default and
+1, the paper's strictly sequential loop, which serves as the reference for "results not
+worse"), seeds 0, 1, ... (the same seeds for every batch size). Reported per object and batch
+size: ``t_total`` (``PlanStats.total_time``), the process CPU time, the time per collision-free
+grasp, the collision-free count and the mean fitting error of the collision-free grasps
+(``FitResult.mean_distance``); medians over ``--repeats`` runs cut by ``--budget`` seconds per
+configuration (at least one run), beside the paper's figures.
+
+Run from the repository root:
+    python bench/table1.py [--quick] [--repeats 5] [--batch-sizes 16,1] [--objects bunny,duck]
 """
 
 from __future__ import annotations
 
-import os
+import _common  # noqa: I001  (first: pins BLAS/OpenMP threads before numpy is imported)
 
-os.environ.setdefault("OMP_NUM_THREADS", "1")
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-
-import argparse  # noqa: E402
-import platform  # noqa: E402
-import statistics  # noqa: E402
 import time  # noqa: E402
 
 import numpy as np  # noqa: E402
-import trimesh  # noqa: E402
 
 import isf  # noqa: E402
-from isf import assets  # noqa: E402
 from isf.samplers import RegretSampler  # noqa: E402
 
+GRIPPER = "paper-parallel"
 PAPER = {  # Table I of the paper: collision-free of 60, t_total (s), vertices
     "Hand": (53, 1.85, 1939), "Gun": (36, 2.45, 2287), "Car": (18, 1.68, 2166),
     "Oscar": (31, 2.03, 3684), "Dragon": (3, 5.61, 3971), "Bunny": (33, 1.56, 740),
     "Banana": (54, 3.82, 1723), "Screw Driver": (58, 1.71, 930), "Doraemon": (40, 1.84, 769),
 }
-PAPER_AVERAGE = (36.2, 2.33, 2022.1)
-MIDDLE_EXTENT = 0.025  # metres
 MAX_POINTS = 2000
-DEFAULT_OBJECTS = ["bunny", "dragon", "duck", "mug", "random-000", "random-001", "random-002",
-                   "bottle", "lemon"]
+DEFAULT_OBJECTS = ("bunny", "dragon", "duck", "ycb:Banana", "ycb:Scissors", "ycb:PowerDrill")
+QUICK_OBJECTS, QUICK_SAMPLES = ("duck",), 20
 
 
-def object_names(requested: str | None) -> list[str]:
-    if requested:
-        return requested.split(",")
-    names = list(DEFAULT_OBJECTS)
-    try:
-        names += assets.benchmark_objects("ycb")
-    except isf.ISFError:
-        print("# YCB folder not found: YCB rows skipped (set ISF_YCB_DIR)")
-    return names
+def paper_sampler() -> RegretSampler:
+    """The paper's sampler: k-means centres, uniformly random orientations."""
+    return RegretSampler(orientation="random")
 
 
-def load_scaled(name: str) -> isf.ObjectSurface:
-    """The benchmark object scaled so its middle bounding-box extent is MIDDLE_EXTENT."""
-    asset = assets.benchmark_object(name)
-    mesh = trimesh.load(asset.path, force="mesh", process=False)
-    extents = np.sort(mesh.extents * asset.scale)
-    scale = asset.scale * MIDDLE_EXTENT / extents[1]
-    return isf.load_object(asset.path, scale=scale, max_points=MAX_POINTS, name=name)
+def measure(gripper, obj, samples: int, batch: int, args) -> dict:
+    runs, failed = _common.run_repeats(
+        lambda seed: _common.plan_once(gripper, obj, samples, seed, batch_size=batch,
+                                       sampler=paper_sampler()),
+        args.repeats, _common.budget_or_none(args), catch=(isf.ISFError,))
+    row = _common.median_row(runs, failed, args.repeats)
+    print(f"#   {obj.name}, batch {batch}: t_total (s) {_common.timing_cell(row)}, "
+          f"{row.get('free', 0):g} collision-free", flush=True)
+    return row
 
 
-def run(name: str, gripper: isf.Gripper, repeats: int, samples: int) -> dict:
-    obj = load_scaled(name)
-    # the paper's sampler: k-means centres, uniformly random orientations
-    runs = [isf.plan(gripper, obj, samples=samples, sampler=RegretSampler(orientation="random"), seed=seed)
-            for seed in range(repeats)]
-    free = [r.stats.collision_free for r in runs]
-    totals = [r.stats.total_time for r in runs]
-    errors = [np.mean([g.fit.mean_distance for g in r.grasps if g.collision_free] or [np.nan])
-              for r in runs]
-    return {
-        "object": name, "vertices": obj.n_points, "free": statistics.median(free),
-        "t_total": statistics.median(totals),
-        "t_per_free": statistics.median(t / f if f else np.inf for t, f in zip(totals, free)),
-        "error_mm": 1e3 * float(np.nanmedian(errors)),
-    }
+def _ok(row: dict | None) -> bool:
+    return row is not None and "timing" in row
 
 
-def table(rows: list[dict], samples: int, repeats: int) -> str:
-    lines = [
-        f"Paper gripper (paper-parallel), {samples} samples per object, regret sampler, "
-        f"median of {repeats} run(s) (seeds 0..{repeats - 1}); machine: {platform.processor() or platform.machine()}, "
-        f"{os.cpu_count()} cores, Python {platform.python_version()}, OMP/OPENBLAS threads 1.",
-        "",
-        "| object | collision-free / 60 | t_total (s) | time per collision-free (ms) | vertices | mean fitting error of collision-free grasps (mm) |",
-        "|---|---|---|---|---|---|",
-    ]
-    for r in rows:
-        lines.append(f"| {r['object']} | {r['free']:g}/{samples} | {r['t_total']:.2f} | "
-                     f"{1e3 * r['t_per_free']:.1f} | {r['vertices']} | {r['error_mm']:.3f} |")
-    if rows:
-        mean_free = np.mean([r["free"] for r in rows])
-        mean_t = np.mean([r["t_total"] for r in rows])
-        lines.append(f"| **average (isf)** | {mean_free:.1f}/{samples} | {mean_t:.2f} | "
-                     f"{1e3 * mean_t / mean_free if mean_free else float('inf'):.1f} | "
-                     f"{np.mean([r['vertices'] for r in rows]):.0f} | "
-                     f"{np.nanmean([r['error_mm'] for r in rows]):.3f} |")
-    f, t, v = PAPER_AVERAGE
-    lines.append(f"| **average (paper, Matlab, 4 GHz)** | {f}/60 | {t:.2f} | 64.4 | {v:.0f} | - |")
-    return "\n".join(lines)
+def _cell(row: dict | None, key: str, scale: float = 1.0, digits: int = 3) -> str:
+    return _common.fmt(row[key] * scale, digits) if _ok(row) else "-"
+
+
+def side_by_side(names, points, results, batches, samples: int) -> str:
+    """One row per object: each quantity for every batch size next to each other."""
+    ref = batches[-1]
+    headers = ["object", "points"]
+    for what in ("t_total (s)", "CPU (s)", "ms per collision-free", "collision-free",
+                 "mean fit error of collision-free (mm)"):
+        headers += [f"{what}, B={b}" for b in batches]
+    headers += [f"t_total(B={ref}) / t_total(B={b})" for b in batches[:-1]]
+    headers += [f"CPU(B={ref}) / CPU(B={b})" for b in batches[:-1]]
+    body = []
+    for name in names:
+        rows = [results.get((name, b)) for b in batches]
+        line = [name, points.get(name, "-")]
+        line += [_cell(r, "t_total") for r in rows] + [_cell(r, "cpu") for r in rows]
+        line += [_cell(r, "per_free", 1e3) for r in rows]
+        line += [f"{r['free']:g}/{samples}" if _ok(r) else "-" for r in rows]
+        line += [_cell(r, "error", 1e3) for r in rows]
+        for key in ("t_total", "cpu"):
+            line += [_common.fmt(rows[-1][key] / r[key]) if _ok(r) and _ok(rows[-1])
+                     else "-" for r in rows[:-1]]
+        body.append(line)
+    body.append(average_row(names, results, batches, samples))
+    paper = _common.PAPER
+    body.append(["**paper (average of 9 objects; Matlab, 4 GHz)**", f"{paper['vertices']:.0f}"]
+                + [f"{paper['t_total_60']}"] * len(batches) + ["-"] * len(batches)
+                + [f"{paper['ms_per_free']}"] * len(batches)
+                + [f"{paper['free_of_60']}/60"] * len(batches) + ["-"] * len(batches)
+                + ["-"] * 2 * (len(batches) - 1))
+    return _common.markdown_table(headers, body)
+
+
+def average_row(names, results, batches, samples: int) -> list[str]:
+    """Means over the objects every batch size measured (so the columns compare like with like)."""
+    common = [n for n in names if all(_ok(results.get((n, b))) for b in batches)]
+    line = [f"**average (isf, {len(common)} objects)**", "-"]
+    if not common:
+        return line + ["-"] * (5 * len(batches) + 2 * (len(batches) - 1))
+
+    def mean(key: str, b: int) -> float:
+        return float(np.nanmean([results[(n, b)][key] for n in common]))
+
+    t = {b: mean("t_total", b) for b in batches}
+    cpu = {b: mean("cpu", b) for b in batches}
+    free = {b: mean("free", b) for b in batches}
+    line += [_common.fmt(t[b]) for b in batches] + [_common.fmt(cpu[b]) for b in batches]
+    # the paper's "time per collision-free grasp" average: mean t_total / mean free count
+    line += [_common.fmt(1e3 * t[b] / free[b]) if free[b] else "-" for b in batches]
+    line += [f"{free[b]:.1f}/{samples}" for b in batches]
+    line += [_common.fmt(1e3 * mean("error", b)) for b in batches]
+    line += [_common.fmt(t[batches[-1]] / t[b]) for b in batches[:-1]]
+    line += [_common.fmt(cpu[batches[-1]] / cpu[b]) for b in batches[:-1]]
+    return line
+
+
+def detail(names, results, batches, samples: int) -> str:
+    """One row per object and batch size: spread of t_total and the stage times."""
+    body = []
+    for name in names:
+        for b in batches:
+            r = results.get((name, b))
+            if not _ok(r):
+                body.append([name, b, "skipped (deadline)" if r is None else
+                             _common.timing_cell(r)] + ["-"] * 6)
+                continue
+            body.append([name, b, _common.timing_cell(r), _common.fmt(r["cpu"]),
+                         f"{r['setup']:.3f} / {r['fit']:.3f} / {r['collision']:.3f}",
+                         f"{r['free']:g}/{samples}", f"{r['valid']:g}",
+                         _common.fmt(r["error"] * 1e3), f"{r['iterations']:.1f}"])
+    return _common.markdown_table(
+        ["object", "batch size", "t_total (s), median (min-max, n)", "CPU (s)",
+         "set-up / ISF / collision (s)", "collision-free", "valid", "mean fit error (mm)",
+         "ISF iterations per sample"], body)
+
+
+def paper_rows() -> str:
+    return "The paper's own rows (its objects are not available here): " + ", ".join(
+        f"{name} {free}/60 {t:.2f} s ({v} vertices)" for name, (free, t, v) in PAPER.items()
+    ) + "."
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--repeats", type=int, default=1, help="runs per object (median)")
+    parser = _common.base_parser(__doc__.splitlines()[0], repeats=5, budget=60.0)
     parser.add_argument("--samples", type=int, default=60)
-    parser.add_argument("--objects", default=None, help="comma-separated benchmark names")
-    parser.add_argument("--out", default=None, help="also write the table (markdown) here")
+    parser.add_argument("--objects", default=None,
+                        help="comma-separated benchmark names (default: "
+                             + ",".join(DEFAULT_OBJECTS) + ")")
+    parser.add_argument("--batch-sizes", default=None,
+                        help="comma-separated batch sizes of isf.plan (default: isf.plan's "
+                             f"default and 1, i.e. {_common.default_batch_size()},1); the LAST "
+                             "one is the reference the others are compared with")
     args = parser.parse_args()
-    gripper = isf.load_gripper("paper-parallel")
-    rows = []
-    for name in object_names(args.objects):
-        started = time.perf_counter()
-        rows.append(run(name, gripper, args.repeats, args.samples))
-        print(f"# {name}: done in {time.perf_counter() - started:.1f} s", flush=True)
-    text = table(rows, args.samples, args.repeats)
-    print(text)
-    if args.out:
-        with open(args.out, "w") as f:
-            f.write("# Table I, reproduced\n\n" + text + "\n\nCommand: `python bench/table1.py "
-                    f"--repeats {args.repeats}`\n")
+    names = args.objects.split(",") if args.objects else list(DEFAULT_OBJECTS)
+    if args.quick:
+        names = list(QUICK_OBJECTS) if not args.objects else names[:1]
+        args.samples, args.repeats = min(args.samples, QUICK_SAMPLES), min(args.repeats, 1)
+    try:
+        batches = ([int(b) for b in args.batch_sizes.split(",")] if args.batch_sizes
+                   else [_common.default_batch_size(), 1])
+    except ValueError:
+        parser.error(f"--batch-sizes must be comma-separated integers, got {args.batch_sizes!r}")
+    batches = list(dict.fromkeys(batches))
+    started = time.perf_counter()
+    header = _common.machine_description()
+    deadline = _common.Deadline(args.deadline)
+    gripper = isf.load_gripper(GRIPPER)
+    results, points = {}, {}
+    for name in names:  # every batch size of an object before the next object
+        obj = None
+        for b in batches:
+            if not deadline.allows(f"{name} with batch size {b}"):
+                continue
+            if obj is None:
+                obj, _ = _common.scaled_benchmark_object(name, max_points=MAX_POINTS)
+                points[name] = obj.n_points
+            results[(name, b)] = measure(gripper, obj, args.samples, b, args)
+    sequential = "B=1: the paper's sequential loop; " if 1 in batches else ""
+    note = (f"Gripper `{GRIPPER}`, {args.samples} samples per object, regret sampler with random "
+            f"orientations (the paper's), objects scaled to a "
+            f"{_common.PAPER_GRIPPER_MIDDLE_EXTENT * 1e3:g} mm middle extent and sampled to at "
+            f"most {MAX_POINTS} points; batch sizes {', '.join(map(str, batches))} "
+            f"({sequential}the last is the reference); seeds 0..n-1, up to "
+            f"{args.repeats} runs per object and batch size (budget {args.budget:g} s; n in the "
+            "detail table). Medians over the runs; the average row is the mean of the objects' "
+            "medians, and its time per collision-free grasp is mean t_total / mean count, as "
+            "the paper's.")
+    sections = ["### Table I: 60 samples per object", note,
+                side_by_side(names, points, results, batches, args.samples),
+                "**Detail** (per object and batch size):",
+                detail(names, results, batches, args.samples), paper_rows(), *deadline.note(),
+                *_common.failure_notes([(f"{n}, batch {b}", r) for (n, b), r in results.items()])]
+    _common.finish("table1: the paper's Table I, reproduced", sections, started, header, args.out)
 
 
 if __name__ == "__main__":
