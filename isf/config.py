@@ -51,6 +51,9 @@ class FitConfig:
         outlier_factor: a pair is an outlier when its distance exceeds this many
             times the median pair distance ...
         outlier_floor: ... and also exceeds this distance, metres.
+        outlier_scope: ``"surface"``: the median is taken per contact surface (a finger whose
+            tip is still far from the object is pulled in, not dropped as an outlier while the
+            others touch); ``"fit"``: over all pairs of the fit, as in the paper.
         reject_duplicates: keep only the closest pair per object point (paper IV-B).
         max_normal_angle: drop pairs whose contact normal is more than this far from the
             reversed object normal, radians (not in the paper; pi turns it off).
@@ -71,6 +74,7 @@ class FitConfig:
     finger_damping: float = 1e-9
     outlier_factor: float = 3.0
     outlier_floor: float = 0.005
+    outlier_scope: str = "surface"
     reject_duplicates: bool = True
     max_normal_angle: float = 1.5
     lock_fingers: bool = False
@@ -88,6 +92,9 @@ class FitConfig:
             value = getattr(self, name)
             if not value >= 0.0:
                 raise ConfigError(f"FitConfig.{name} must be >= 0, got {value!r}")
+        if self.outlier_scope not in ("surface", "fit"):
+            raise ConfigError(
+                f"FitConfig.outlier_scope must be 'surface' or 'fit', got {self.outlier_scope!r}")
         positive = ("max_rotation_step", "max_revolute_step", "outlier_factor", "contact_distance",
                     "max_normal_angle")
         for name in positive:

@@ -41,11 +41,13 @@ def match_many(
     normals: np.ndarray | None = None,
     max_normal_angle: float = np.pi,
     nearest: tuple[np.ndarray, np.ndarray] | None = None,
+    outlier_groups: Segments | None = None,
 ) -> Correspondences:
     """Match contact points to their nearest object points and filter the pairs, per fit.
 
     A pair is an outlier when its distance exceeds both ``outlier_factor`` times
-    the median distance of its fit and ``outlier_floor``. With ``reject_duplicates``,
+    the median distance of its group and ``outlier_floor``; the group is its fit, or a
+    finer grouping given as ``outlier_groups`` (e.g. one per contact surface of each fit). With ``reject_duplicates``,
     when several contact points of one fit share an object point only the closest pair
     is kept (Zinsser et al., the paper's ref. [15]). With ``normals``, a pair whose
     contact normal is more than ``max_normal_angle`` away from the reversed object
@@ -62,14 +64,16 @@ def match_many(
         normals: contact normals in the object frame, shape (M, 3), or None.
         max_normal_angle: normal compatibility threshold, radians.
         nearest: ``obj.nearest(points)`` when the caller has it already.
+        outlier_groups: groups of consecutive points sharing one median (default ``segments``).
 
     Returns:
         the surviving pairs, sorted by query index (so still grouped by fit).
     """
     dist, target = obj.nearest(points) if nearest is None else nearest
-    medians = np.array([np.median(dist[s]) for s in segments.slices()])
+    groups = segments if outlier_groups is None else outlier_groups
+    medians = np.array([np.median(dist[s]) for s in groups.slices()])
     threshold = np.maximum(outlier_factor * medians, outlier_floor)
-    keep = dist <= threshold[segments.ids]
+    keep = dist <= threshold[groups.ids]
     if normals is not None and max_normal_angle < np.pi:
         keep &= np.einsum("ij,ij->i", normals, obj.normals[target]) <= -np.cos(max_normal_angle)
     source = np.flatnonzero(keep)

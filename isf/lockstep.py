@@ -35,7 +35,7 @@ from .object_surface import ObjectSurface
 from .result import FitResult, FitStatus, IterationRecord
 from .segments import Segments
 
-__all__ = ["LockstepFitter", "score_fit"]
+__all__ = ["LockstepFitter", "outlier_groups", "score_fit"]
 
 
 @dataclass(eq=False)
@@ -131,8 +131,10 @@ class LockstepFitter:
             return []
         counts = np.array([len(f.index) for f in fits])
         queries = Segments.from_counts(counts)
+        point_index = np.concatenate([f.index for f in fits])
         pairs = match_many(
             self.obj, np.concatenate([f.current for f in fits]), queries,
+            outlier_groups=outlier_groups(self.gripper, queries, point_index, config),
             outlier_factor=config.outlier_factor, outlier_floor=config.outlier_floor,
             reject_duplicates=config.reject_duplicates,
             normals=np.concatenate([f.current_normals for f in fits]),
@@ -147,7 +149,7 @@ class LockstepFitter:
             finished.append(f)
         if fitted.any():
             self._iterate([f for f, ok in zip(fits, fitted) if ok], pairs, owner, fitted,
-                          np.concatenate([f.index for f in fits]), finished)
+                          point_index, finished)
         done = {id(f) for f in finished}
         self._fits = [f for f in fits if id(f) not in done]
         for f in finished:
@@ -206,6 +208,23 @@ class LockstepFitter:
                          tuple(f.history), time.perf_counter() - f.started)
 
 
+def outlier_groups(gripper: Gripper, fits: Segments, point_index: np.ndarray,
+                   config: FitConfig) -> Segments | None:
+    """The groups whose median sets the outlier threshold: each fit's points of one contact
+    surface (``config.outlier_scope == "surface"``), or None (whole fits).
+
+    Args:
+        gripper: the gripper.
+        fits: the fit of each query point (points grouped by fit).
+        point_index: gripper point index of each query point, (M,), ascending within a fit.
+    """
+    if config.outlier_scope == "fit":
+        return None
+    surface = gripper.point_surface[point_index]
+    new = np.r_[True, (surface[1:] != surface[:-1]) | (fits.ids[1:] != fits.ids[:-1])]
+    return Segments(np.cumsum(new) - 1)
+
+
 def score_fit(gripper: Gripper, obj: ObjectSurface, T: np.ndarray, q: np.ndarray, config: FitConfig,
               status: FitStatus, history: tuple[IterationRecord, ...], elapsed: float) -> FitResult:
     """The :class:`FitResult` of a final state ``(T, q)``: all contact points matched afresh."""
@@ -214,8 +233,10 @@ def score_fit(gripper: Gripper, obj: ObjectSurface, T: np.ndarray, q: np.ndarray
     points = points @ R.T + t
     normals = normals @ R.T
     nearest = obj.nearest(points)
+    single = Segments.single(len(points))
     pairs = match_many(
-        obj, points, Segments.single(len(points)), nearest=nearest,
+        obj, points, single, nearest=nearest,
+        outlier_groups=outlier_groups(gripper, single, np.arange(len(points)), config),
         outlier_factor=config.outlier_factor, outlier_floor=config.outlier_floor, reject_duplicates=config.reject_duplicates, normals=normals,
         max_normal_angle=config.max_normal_angle,
     )
