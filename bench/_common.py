@@ -153,7 +153,7 @@ def default_batch_size() -> int:
 
 
 def plan_once(gripper, obj, samples: int, seed: int, config=None, batch_size: int | None = None,
-              sampler="regret") -> dict:
+              sampler="regret", repair_collisions: bool | None = None) -> dict:
     """One ``isf.plan``: wall and CPU time, stage times, counts, fit quality.
 
     Args:
@@ -161,6 +161,8 @@ def plan_once(gripper, obj, samples: int, seed: int, config=None, batch_size: in
         batch_size: samples fitted in lockstep (None: ``isf.plan``'s default; 1: the paper's
             strictly sequential loop).
         sampler: a sampler name or instance (default the regret bandit).
+        repair_collisions: passed to ``isf.plan`` (None: its default, on; False: the paper's
+            Algorithm 3 without the collision repair).
 
     Returns:
         a dict of floats: ``t_total`` (``PlanStats.total_time``, s), ``cpu`` (process time around
@@ -172,6 +174,8 @@ def plan_once(gripper, obj, samples: int, seed: int, config=None, batch_size: in
     import isf
 
     kwargs = {} if batch_size is None else {"batch_size": batch_size}
+    if repair_collisions is not None:
+        kwargs["repair_collisions"] = repair_collisions
     cpu = time.process_time()
     result = isf.plan(gripper, obj, samples=samples, sampler=sampler, seed=seed, config=config,
                       **kwargs)

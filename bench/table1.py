@@ -49,7 +49,7 @@ def paper_sampler() -> RegretSampler:
 def measure(gripper, obj, samples: int, batch: int, args) -> dict:
     runs, failed = _common.run_repeats(
         lambda seed: _common.plan_once(gripper, obj, samples, seed, batch_size=batch,
-                                       sampler=paper_sampler()),
+                                       sampler=paper_sampler(), repair_collisions=args.repair),
         args.repeats, _common.budget_or_none(args), catch=(isf.ISFError,))
     row = _common.median_row(runs, failed, args.repeats)
     print(f"#   {obj.name}, batch {batch}: t_total (s) {_common.timing_cell(row)}, "
@@ -148,6 +148,8 @@ def paper_rows() -> str:
 def main() -> None:
     parser = _common.base_parser(__doc__.splitlines()[0], repeats=5, budget=60.0)
     parser.add_argument("--samples", type=int, default=60)
+    parser.add_argument("--repair", action="store_true",
+                        help="repair colliding fits (isf.plan's default); without it the paper's Algorithm 3")
     parser.add_argument("--objects", default=None,
                         help="comma-separated benchmark names (default: "
                              + ",".join(DEFAULT_OBJECTS) + ")")
@@ -181,8 +183,10 @@ def main() -> None:
                 points[name] = obj.n_points
             results[(name, b)] = measure(gripper, obj, args.samples, b, args)
     sequential = "B=1: the paper's sequential loop; " if 1 in batches else ""
+    repair = ("colliding fits repaired (isf.plan's default)" if args.repair
+              else "no collision repair (the paper's Algorithm 3)")
     note = (f"Gripper `{GRIPPER}`, {args.samples} samples per object, regret sampler with random "
-            f"orientations (the paper's), objects scaled to a "
+            f"orientations (the paper's), {repair}, objects scaled to a "
             f"{_common.PAPER_GRIPPER_MIDDLE_EXTENT * 1e3:g} mm middle extent and sampled to at "
             f"most {MAX_POINTS} points; batch sizes {', '.join(map(str, batches))} "
             f"({sequential}the last is the reference); seeds 0..n-1, up to "

@@ -36,9 +36,10 @@ class FingerStepQP:
     Args:
         n: number of joints.
         damping: ``lambda``, the Tikhonov weight on ``dq``.
+        max_iter: OSQP's iteration cap.
     """
 
-    def __init__(self, n: int, damping: float):
+    def __init__(self, n: int, damping: float, max_iter: int = 4000):
         self.n = n
         self.damping = damping
         rows, cols = np.triu_indices(n)
@@ -51,7 +52,7 @@ class FingerStepQP:
         self._solver = osqp.OSQP()
         self._solver.setup(
             P, np.zeros(n), sp.identity(n, format="csc"), -np.ones(n), np.ones(n),
-            verbose=False, eps_abs=1e-10, eps_rel=1e-10, polishing=False, max_iter=4000,
+            verbose=False, eps_abs=1e-10, eps_rel=1e-10, polishing=False, max_iter=max_iter,
         )
         self._x = np.zeros(n)
 
@@ -85,11 +86,17 @@ class FingerStepQP:
         s.update(Px=H[self._rows, self._cols], q=g, l=lower, u=upper)
         s.warm_start(x=np.clip(self._x, lower, upper))
         res = s.solve(raise_error=False)
-        # "solved inaccurate" (iteration cap reached close to the optimum) still gives
-        # a usable step once clipped into the bounds; anything else is a failure.
-        if res.info.status not in ("solved", "solved inaccurate") or not np.all(np.isfinite(res.x)):
+        x = np.clip(res.x, lower, upper) if np.all(np.isfinite(res.x)) else None
+        # "solved inaccurate" is close to the optimum. At the iteration cap (ill-conditioned
+        # hands) the iterate is still kept when, clipped into the bounds, it lowers the QP's
+        # objective below that of no step (0): a descent step of the linearised error, which
+        # IPFO then accepts only if the true E drops. Anything else is a failure.
+        usable = res.info.status in ("solved", "solved inaccurate") or (
+            res.info.status == "maximum iterations reached" and x is not None
+            and 0.5 * x @ H @ x + g @ x < 0.0)
+        if x is None or not usable:
             raise QPStepError({"P": H, "q": g, "lb": lower, "ub": upper}, res.info.status)
-        self._x = np.clip(res.x, lower, upper)
+        self._x = x
         return self._x.copy()
 
 

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 from scipy.optimize import lsq_linear
 
+import isf
 from _builders import parallel_gripper, random_rotation
 from isf.finger_step import FingerStepQP
 from isf.finger_step import finger_steps
@@ -121,3 +122,23 @@ def test_batched_finger_steps_equal_osqp_per_fit():
         np.testing.assert_allclose(dq[k], ref, atol=1e-8)
         bound_active += bool(np.any(np.isclose(ref, lower[k]) | np.isclose(ref, upper[k])))
     assert 0 < bound_active < B  # both paths were exercised
+
+
+def test_an_iterate_at_the_iteration_cap_is_kept_only_as_a_descent_step():
+    """OSQP stopped by its cap: the clipped iterate is used when it lowers the QP objective."""
+    rng = np.random.default_rng(8)
+    n = 6
+    kept = 0
+    for _ in range(20):
+        A = rng.normal(size=(40, n)) @ np.diag(np.logspace(0, -4, n))  # ill-conditioned
+        b = rng.normal(size=40)
+        lower, upper = -rng.uniform(0.0, 0.2, n), rng.uniform(0.0, 0.2, n)
+        qp = FingerStepQP(n, damping=0.0, max_iter=3)
+        try:
+            dq = qp.solve(A, b, lower, upper)
+        except isf.QPStepError:
+            continue
+        kept += 1
+        assert np.all(dq >= lower) and np.all(dq <= upper)
+        assert np.sum((A @ dq - b) ** 2) < np.sum(b**2)  # better than no step
+    assert kept > 0
