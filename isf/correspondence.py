@@ -71,7 +71,7 @@ def match_many(
     """
     dist, target = obj.nearest(points) if nearest is None else nearest
     groups = segments if outlier_groups is None else outlier_groups
-    medians = np.array([np.median(dist[s]) for s in groups.slices()])
+    medians = _group_medians(dist, groups)
     threshold = np.maximum(outlier_factor * medians, outlier_floor)
     keep = dist <= threshold[groups.ids]
     if normals is not None and max_normal_angle < np.pi:
@@ -86,6 +86,15 @@ def match_many(
         keep = np.sort(order[first])
         source, target, dist = source[keep], target[keep], dist[keep]
     return Correspondences(source, target, dist)
+
+
+def _group_medians(values: np.ndarray, groups: Segments) -> np.ndarray:
+    """Median of ``values`` (M,) within each group, (G,) (one sort for all groups)."""
+    order = np.lexsort((values, groups.ids))
+    ranked = values[order]
+    lower = groups.starts + (groups.counts - 1) // 2
+    upper = groups.starts + groups.counts // 2
+    return 0.5 * (ranked[lower] + ranked[upper])
 
 
 def match(

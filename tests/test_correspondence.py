@@ -36,3 +36,15 @@ def test_duplicates_are_rejected_within_a_fit_not_across_fits():
     fits = Segments(np.array([0, 0, 1, 1]))
     pairs = match_many(plane, points, fits, outlier_factor=3.0, outlier_floor=0.005, reject_duplicates=True)
     assert pairs.source.tolist() == [0, 2]  # the closer of each fit's two
+
+
+def test_group_medians_equal_numpy_medians():
+    from isf.correspondence import _group_medians
+
+    rng = np.random.default_rng(0)
+    for _ in range(50):
+        counts = rng.integers(1, 40, rng.integers(1, 10))
+        groups = Segments.from_counts(counts)
+        values = rng.random(counts.sum())
+        expected = [np.median(values[s]) for s in groups.slices()]
+        np.testing.assert_array_equal(_group_medians(values, groups), expected)
