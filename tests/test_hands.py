@@ -106,25 +106,35 @@ def test_allegro_plans_collision_free_fingertip_grasps(allegro, can):
 
 
 @pytest.mark.slow
-def test_repair_turns_the_penetrating_allegro_fit_collision_free(allegro, can):
-    """The issue's case: a fit whose link_3.0 / link_7.0 go through the can, repaired."""
+def test_repair_turns_penetrating_allegro_fits_collision_free(allegro, can):
+    """The issue's case: fits whose finger links go a few millimetres through the can.
+
+    Eight regret proposals are fitted; every fit that collides with at most 10 mm of
+    penetration (the fingertips seated, links behind them inside; deeper fits are failed
+    fits, not this case) must come out of the repair collision-free by the checker and by
+    an independent trimesh depth check, within the joint limits, with a tip still on the can.
+    """
     obj, mesh = can
     rng = np.random.default_rng(0)
     sampler = isf.samplers.get_sampler("regret")
     sampler.reset(obj, allegro, rng)
-    (proposal,) = sampler.propose(1, rng)
-    fitted = isf.fit(allegro, obj, proposal.T_object_gripper)
+    proposals = sampler.propose(8, rng)
+    fits = isf.fit_many(allegro, obj, np.stack([p.T_object_gripper for p in proposals]))
     checker = CollisionChecker(allegro, obj)
-    assert not checker.check(fitted.T_object_gripper, fitted.q).collision_free  # the reported failure
     samples = link_samples(allegro)
-    assert max(signed_depths(allegro, samples, mesh, fitted.T_object_gripper, fitted.q).values()) > TOLERANCE
-    repaired = repair_penetration(allegro, obj, fitted)
-    assert checker.check(repaired.T_object_gripper, repaired.q).collision_free
-    depth = signed_depths(allegro, samples, mesh, repaired.T_object_gripper, repaired.q)
-    assert max(depth.values()) < TOLERANCE, depth
-    assert np.all(repaired.q >= allegro.lower) and np.all(repaired.q <= allegro.upper)
-    # the contacts stay where the fit put them: the tips still touch the can
-    assert sum(v > 0.0 for v in repaired.surface_contact.values()) >= 2, repaired.surface_contact
+    cases = [f for f in fits if not checker.check(f.T_object_gripper, f.q).collision_free
+             and checker.check(f.T_object_gripper, f.q).penetration <= 0.010]
+    assert len(cases) >= 3  # the reported failure is the common one
+    touching = []
+    for fitted in cases:
+        assert max(signed_depths(allegro, samples, mesh, fitted.T_object_gripper, fitted.q).values()) > TOLERANCE
+        repaired = repair_penetration(allegro, obj, fitted)
+        assert checker.check(repaired.T_object_gripper, repaired.q).collision_free
+        depth = signed_depths(allegro, samples, mesh, repaired.T_object_gripper, repaired.q)
+        assert max(depth.values()) < TOLERANCE, depth
+        assert np.all(repaired.q >= allegro.lower) and np.all(repaired.q <= allegro.upper)
+        touching.append(sum(v > 0.0 for v in repaired.surface_contact.values()))
+    assert min(touching) >= 1 and max(touching) >= 2, touching
 
 
 # ----------------------------------------------------------------- analytic repair cases
