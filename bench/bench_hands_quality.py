@@ -15,11 +15,11 @@ Hands:
 * ``three-finger``: the bundled hand.
 * ``allegro``: the vendor Allegro hand tagged as docs/tutorial-register.md does
   (``suggest_contacts(points=64)`` + ``tag_urdf``): a 0.5 rad cap per fingertip facing the
-  centroid of the fingertips, which on this hand points sideways out of the finger.
-* ``allegro-palmar``: the same copy with each cap turned to the palmar side of the tip
-  (``normal = (cos 0.35, 0, sin 0.35)`` in the tip frame: +x is palmar, +z distal), the one edit
-  of the suggestion that keeps the finger links behind the pad clear (the distal link's box is
-  13.8 mm half-wide sideways but the tip sphere only 12 mm in radius).
+  side the finger curls towards (see ``suggest_contacts``; before that rule the caps faced the
+  centroid of the fingertips, sideways out of the finger on this hand).
+* ``allegro-palmar``: the same copy with each cap set by hand to the palmar side of the tip
+  (``normal = (cos 0.35, 0, sin 0.35)`` in the tip frame: +x is palmar, +z distal), for
+  comparison with the suggestion.
 
 Run from the repository root (a machine shared with other jobs: times are indicative):
     python bench/bench_hands_quality.py [--quick] [--hands three-finger,allegro]

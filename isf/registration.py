@@ -962,6 +962,28 @@ def _facing_normal(
     return mean / np.linalg.norm(mean), True
 
 
+def _closing_direction(posed: _Posed, link: str, toward: np.ndarray) -> np.ndarray:
+    """``toward`` (unit, gripper frame) without its component along the axis of the revolute
+    joint that moves ``link`` last, (3,): a rounded fingertip faces the side its finger curls
+    towards, not sideways out of the finger (on a hand the centroid of the fingertips lies off to
+    the side of most fingers). Unchanged when that joint is prismatic or the rest is too small.
+    """
+    model = posed.model
+    data = model.createData()
+    fid = model.getFrameId(link)
+    J = pin.computeFrameJacobian(model, data, posed.q, fid, pin.LOCAL_WORLD_ALIGNED)
+    joint = model.frames[fid].parentJoint
+    if joint == 0 or model.joints[joint].nv == 0:
+        return toward
+    column = J[3:, model.joints[joint].idx_v]
+    if np.linalg.norm(column) < 1e-9:  # a prismatic joint turns nothing
+        return toward
+    axis = column / np.linalg.norm(column)
+    rest = toward - (toward @ axis) * axis
+    norm = float(np.linalg.norm(rest))
+    return rest / norm if norm > 0.2 else toward
+
+
 def _surface_name(link: str) -> str:
     return link if link.endswith(("pad", "tip")) else f"{link}_pad"
 
@@ -1029,8 +1051,11 @@ def suggest_contacts(
     Facing direction: at the initial configuration (``isf:initial`` tags, then ``initial``,
     else mid-limits), the direction from the fingertip's geometry centroid to the centroid
     of all fingertips, in the link frame. The contact's ``normal`` is the mean normal of the
-    largest flat cluster of faces within 46 degrees of it (a pad), or the direction itself
-    when no cluster holds half of those faces' area (a rounded tip). The cone half-angle
+    largest flat cluster of faces within 46 degrees of it (a pad); when no cluster holds half
+    of those faces' area (a rounded tip) it is that direction without its component along
+    the axis of the revolute joint that moves the tip last, i.e. the side the finger curls
+    towards (on a hand the centroid lies off to the side of most fingers; a cap facing
+    sideways would put the distal link's edge into the object). The cone half-angle
     ``max_angle`` is 0.3 rad for a flat pad (its faces only) and 0.5 rad for a rounded tip
     (a cap of it). Collision geometry is used when the link has any, else visual geometry.
 
@@ -1076,6 +1101,8 @@ def suggest_contacts(
             )
         R = posed.poses[t.link][:3, :3]
         normal, flat = _facing_normal(t.meshes, R.T @ toward / dist)
+        if not flat:  # a rounded tip: face the side the finger closes towards
+            normal = R.T @ _closing_direction(posed, t.link, toward / dist)
         auto_angle = _PAD_ANGLE if flat else _TIP_ANGLE
         spec = ContactSpec(
             name=_surface_name(t.link),
