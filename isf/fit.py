@@ -70,59 +70,21 @@ def fit_many(
         InvalidInputError: a pose is not a rigid transform, or a joint vector has the
             wrong size or lies outside the joint limits.
     """
-    T_batch = np.asarray(T_object_gripper, dtype=float)
-    if T_batch.ndim != 3:
-        T_batch = T_batch[None] if T_batch.ndim == 2 else T_batch
-    poses = [_check_pose(T) for T in T_batch]
+    poses = np.asarray(T_object_gripper, dtype=float)
+    if poses.ndim == 2:
+        poses = poses[None]
     if q is None:
-        joints = [_check_joints(gripper, None) for _ in poses]
+        joints = [None] * len(poses)
     else:
-        q = np.asarray(q, dtype=float)
-        q = q.reshape(len(poses), -1) if q.size == len(poses) * gripper.n_joints else q
-        if len(q) != len(poses):
-            raise InvalidInputError(f"got {len(poses)} poses but {len(q)} joint vectors: pass one per pose")
-        joints = [_check_joints(gripper, qb) for qb in q]
+        joints = np.asarray(q, dtype=float)
+        if joints.size == len(poses) * gripper.n_joints:
+            joints = joints.reshape(len(poses), -1)
+        if len(joints) != len(poses):
+            raise InvalidInputError(f"got {len(poses)} poses but {len(joints)} joint vectors: pass one per pose")
     fitter = LockstepFitter(gripper, obj, config)
     for index, (T, qb) in enumerate(zip(poses, joints)):
-        fitter.add(index, T, qb)
+        fitter.add(index, T, qb)  # checks the pose and the joints
     results: dict[int, FitResult] = {}
     while fitter.n_active:
         results.update(fitter.step())
     return [results[i] for i in range(len(poses))]
-
-
-def _check_pose(T: np.ndarray) -> np.ndarray:
-    T = np.asarray(T, dtype=float)
-    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
-        raise InvalidInputError(
-            f"T_object_gripper must be a finite 4x4 matrix, got shape {T.shape}: "
-            "pass a homogeneous transform"
-        )
-    R = T[:3, :3]
-    if not np.allclose(R.T @ R, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0.0 or not np.allclose(
-        T[3], [0.0, 0.0, 0.0, 1.0]
-    ):
-        raise InvalidInputError(
-            "T_object_gripper is not a rigid transform (its 3x3 block must be a rotation "
-            "and its last row [0, 0, 0, 1]): orthonormalise it first"
-        )
-    return T.copy()
-
-
-def _check_joints(gripper: Gripper, q: np.ndarray | None) -> np.ndarray:
-    if q is None:
-        return gripper.q_initial.copy()
-    q = np.asarray(q, dtype=float).reshape(-1)
-    if q.shape != (gripper.n_joints,) or not np.all(np.isfinite(q)):
-        raise InvalidInputError(
-            f"q must hold {gripper.n_joints} finite values, one per actuated joint "
-            f"{list(gripper.joint_names)}, got {q.shape[0]}"
-        )
-    outside = [
-        f"{name}={value:g} not in [{lo:g}, {hi:g}]"
-        for name, value, lo, hi in zip(gripper.joint_names, q, gripper.lower, gripper.upper)
-        if not lo - 1e-12 <= value <= hi + 1e-12
-    ]
-    if outside:
-        raise InvalidInputError(f"initial joints outside their limits: {', '.join(outside)}")
-    return gripper.clip(q)

@@ -46,9 +46,12 @@ class PairBatch:
         self.point_index = np.asarray(point_index)
         self.targets = np.asarray(targets, dtype=float)
         self.target_normals = np.asarray(target_normals, dtype=float)
-        self._link = gripper.point_link[self.point_index]
-        self._points = gripper.points_link[self.point_index]
-        self._normals = gripper.normals_link[self.point_index]
+        self.link = gripper.point_link[self.point_index]
+        """Contact link of each pair (index into ``gripper.contact_links``), (K,)."""
+        self.points_link = gripper.points_link[self.point_index]
+        """Contact points in their link frames, (K, 3), metres."""
+        self.normals_link = gripper.normals_link[self.point_index]
+        """Contact normals in their link frames, (K, 3)."""
 
     def __len__(self) -> int:
         return len(self.point_index)
@@ -60,10 +63,10 @@ class PairBatch:
             links: kinematics of the B fits (arrays with a leading fit axis, see
                 :meth:`Gripper.link_kinematics_many`).
         """
-        fit, link = self.segments.ids, self._link
+        fit, link = self.segments.ids, self.link
         R = links.rotations[fit, link]
-        offsets = _rotate(R, self._points)
-        return offsets + links.positions[fit, link], _rotate(R, self._normals), offsets
+        offsets = _rotate(R, self.points_link)
+        return offsets + links.positions[fit, link], _rotate(R, self.normals_link), offsets
 
     def to_object(self, T: np.ndarray, points: np.ndarray, normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Gripper-frame points and normals (K, 3) moved by each pair's palm pose ``T`` (B, 4, 4)."""
@@ -99,7 +102,7 @@ class PairBatch:
         Joints that turn links add alpha-weighted normal rows
         ``alpha (n_i x m_i)^T Jw_k``, ``-alpha (n_i^T m_i + 1)``.
         """
-        fit, link = self.segments.ids, self._link
+        fit, link = self.segments.ids, self.link
         R = T[fit, :3, :3]
         m = np.einsum("kji,kj->ki", R, self.target_normals)
         Jv, Jw = links.J_linear[fit, link], links.J_angular[fit, link]
@@ -142,10 +145,10 @@ class IPFOResult(NamedTuple):
     links: LinkKinematics
 
 
-def _select(mask: np.ndarray, new, old):
-    """Per fit (mask (B,)), the new arrays where set, else the old (leading fit axis)."""
-    values = [np.where(mask.reshape((-1,) + (1,) * (o.ndim - 1)), n, o) for n, o in zip(new, old)]
-    return type(old)(*values) if hasattr(old, "_fields") else tuple(values)
+def _select(mask: np.ndarray, new: LinkKinematics, old: LinkKinematics) -> LinkKinematics:
+    """Per fit (mask (B,)), the new kinematics where set, else the old."""
+    return LinkKinematics(*(np.where(mask.reshape((-1,) + (1,) * (o.ndim - 1)), n, o)
+                            for n, o in zip(new, old)))
 
 
 def _kinematics_where(gripper: Gripper, links: LinkKinematics, q: np.ndarray, mask: np.ndarray) -> LinkKinematics:
@@ -178,8 +181,8 @@ def ipfo(pairs: PairBatch, T: np.ndarray, q: np.ndarray, qps: list[FingerStepQP]
     gripper, seg = pairs.gripper, pairs.segments
     alpha = config.normal_weight
     n_fits = len(seg)
-    moments = PairMoments(seg.ids, gripper.point_link[pairs.point_index], gripper.points_link[pairs.point_index],
-                          gripper.normals_link[pairs.point_index], pairs.targets, pairs.target_normals, n_fits)
+    moments = PairMoments(seg.ids, pairs.link, pairs.points_link, pairs.normals_link, pairs.targets,
+                          pairs.target_normals, n_fits)
     threshold = config.ipfo_tolerance * seg.counts
     move_fingers = qps is not None and not config.lock_fingers
     step = np.where(gripper.revolute, config.max_revolute_step, np.inf)

@@ -27,7 +27,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .config import FitConfig
-from .correspondence import match_many
+from .correspondence import Correspondences, match_many
+from .exceptions import InvalidInputError
 from .finger_step import FingerStepQP
 from .gripper import Gripper, LinkKinematics
 from .ipfo import PairBatch, ipfo
@@ -89,15 +90,17 @@ class LockstepFitter:
         """Fits still running."""
         return len(self._fits)
 
-    def add(self, key: Hashable, T_object_gripper: np.ndarray, q: np.ndarray) -> None:
-        """Start a fit from palm pose ``T_object_gripper`` (4, 4) and joints ``q`` (n_joints,).
+    def add(self, key: Hashable, T_object_gripper: np.ndarray, q: np.ndarray | None = None) -> None:
+        """Start a fit from palm pose ``T_object_gripper`` (4, 4) and joints ``q`` (n_joints,;
+        default ``gripper.q_initial``).
 
-        The inputs must be valid (a rigid transform; joints within their limits):
-        :func:`isf.fit` checks them for users.
+        Raises:
+            InvalidInputError: the pose is not a rigid transform, or ``q`` has the wrong size
+                or lies outside the joint limits.
         """
-        fit = _Fit(key, np.array(T_object_gripper, dtype=float), np.array(q, dtype=float),
-                   self._take_qp(), time.perf_counter())
-        self._enter_level(fit, self.config.levels - 1)
+        T, q = _check_pose(T_object_gripper), _check_joints(self.gripper, q)
+        fit = _Fit(key, T, q, self._take_qp(), time.perf_counter())
+        self._enter_level(fit, self.config.levels - 1, self.gripper.link_kinematics_many(q[None]))
         self._fits.append(fit)
 
     def _take_qp(self) -> FingerStepQP | None:
@@ -110,19 +113,16 @@ class LockstepFitter:
             return qp
         return FingerStepQP(self.gripper.n_joints, self.config.finger_damping)
 
-    def _enter_level(self, fit: _Fit, level: int) -> None:
+    def _enter_level(self, fit: _Fit, level: int, links: LinkKinematics) -> None:
+        """Start pyramid level ``level``; ``links``: the fit's kinematics (leading axis of 1)."""
         fit.level = level
         fit.index = self._levels[level]
         fit.max_iterations = max(1, self.config.max_iterations // 2**level)
         fit.eps = 2**level * self.config.tolerance
-        fit.current, fit.current_normals = self._object_points(fit.T, fit.q, fit.index)
+        (fit.current,), (fit.current_normals,) = self._level_points([fit], fit.T[None], links)
         fit.start = fit.current
         fit.iteration, fit.displacement, fit.eta = 0, np.inf, 0.0
 
-    def _object_points(self, T: np.ndarray, q: np.ndarray, index: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Contact points ``index`` and their normals at ``(T, q)``, object frame, each (len(index), 3)."""
-        points, normals = self.gripper.contact_points(q, index)
-        return points @ T[:3, :3].T + T[:3, 3], normals @ T[:3, :3].T
 
     def step(self) -> list[tuple[Hashable, FitResult]]:
         """One ISF iteration of every running fit; returns ``(key, result)`` of the fits that ended."""
@@ -132,14 +132,8 @@ class LockstepFitter:
         counts = np.array([len(f.index) for f in fits])
         queries = Segments.from_counts(counts)
         point_index = np.concatenate([f.index for f in fits])
-        pairs = match_many(
-            self.obj, np.concatenate([f.current for f in fits]), queries,
-            outlier_groups=outlier_groups(self.gripper, queries, point_index, config),
-            outlier_factor=config.outlier_factor, outlier_floor=config.outlier_floor,
-            reject_duplicates=config.reject_duplicates,
-            normals=np.concatenate([f.current_normals for f in fits]),
-            max_normal_angle=config.max_normal_angle,
-        )
+        pairs = _match(self.gripper, self.obj, config, np.concatenate([f.current for f in fits]),
+                       np.concatenate([f.current_normals for f in fits]), queries, point_index)
         owner = queries.ids[pairs.source]
         n_pairs = np.bincount(owner, minlength=len(fits))
         fitted = n_pairs >= config.min_pairs
@@ -185,7 +179,8 @@ class LockstepFitter:
                     f.status = FitStatus.CONVERGED if f.level_converged() else FitStatus.MAX_ITERATIONS
                     finished.append(f)
                 else:
-                    self._enter_level(f, f.level - 1)
+                    own = LinkKinematics(*(a[b:b + 1] for a in result.links))
+                    self._enter_level(f, f.level - 1, own)
 
     def _level_points(self, fits: list[_Fit], T: np.ndarray, links: LinkKinematics):
         """Each fit's level points and normals at its new state, object frame: lists of (k_b, 3)."""
@@ -206,6 +201,18 @@ class LockstepFitter:
         """Score the final state on the finest level with fresh correspondences."""
         return score_fit(self.gripper, self.obj, f.T, f.q, self.config, f.status,
                          tuple(f.history), time.perf_counter() - f.started)
+
+
+def _match(gripper: Gripper, obj: ObjectSurface, config: FitConfig, points: np.ndarray,
+           normals: np.ndarray, fits: Segments, point_index: np.ndarray,
+           nearest: tuple[np.ndarray, np.ndarray] | None = None) -> Correspondences:
+    """:func:`match_many` with the filters of ``config`` (``point_index``: gripper point of each query)."""
+    return match_many(
+        obj, points, fits, nearest=nearest,
+        outlier_groups=outlier_groups(gripper, fits, point_index, config),
+        outlier_factor=config.outlier_factor, outlier_floor=config.outlier_floor,
+        reject_duplicates=config.reject_duplicates, normals=normals, max_normal_angle=config.max_normal_angle,
+    )
 
 
 def outlier_groups(gripper: Gripper, fits: Segments, point_index: np.ndarray,
@@ -233,13 +240,8 @@ def score_fit(gripper: Gripper, obj: ObjectSurface, T: np.ndarray, q: np.ndarray
     points = points @ R.T + t
     normals = normals @ R.T
     nearest = obj.nearest(points)
-    single = Segments.single(len(points))
-    pairs = match_many(
-        obj, points, single, nearest=nearest,
-        outlier_groups=outlier_groups(gripper, single, np.arange(len(points)), config),
-        outlier_factor=config.outlier_factor, outlier_floor=config.outlier_floor, reject_duplicates=config.reject_duplicates, normals=normals,
-        max_normal_angle=config.max_normal_angle,
-    )
+    pairs = _match(gripper, obj, config, points, normals, Segments.single(len(points)),
+                   np.arange(len(points)), nearest)
     if len(pairs.source):
         batch = PairBatch(gripper, Segments.single(len(pairs.source)), pairs.source,
                           obj.points[pairs.target], obj.normals[pairs.target])
@@ -262,3 +264,40 @@ def score_fit(gripper: Gripper, obj: ObjectSurface, T: np.ndarray, q: np.ndarray
         surface_contact=surface_contact, iterations=len(history), status=status,
         history=history, time=elapsed,
     )
+
+
+def _check_pose(T: np.ndarray) -> np.ndarray:
+    T = np.asarray(T, dtype=float)
+    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+        raise InvalidInputError(
+            f"T_object_gripper must be a finite 4x4 matrix, got shape {T.shape}: "
+            "pass a homogeneous transform"
+        )
+    R = T[:3, :3]
+    if not np.allclose(R.T @ R, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0.0 or not np.allclose(
+        T[3], [0.0, 0.0, 0.0, 1.0]
+    ):
+        raise InvalidInputError(
+            "T_object_gripper is not a rigid transform (its 3x3 block must be a rotation "
+            "and its last row [0, 0, 0, 1]): orthonormalise it first"
+        )
+    return T.copy()
+
+
+def _check_joints(gripper: Gripper, q: np.ndarray | None) -> np.ndarray:
+    if q is None:
+        return gripper.q_initial.copy()
+    q = np.asarray(q, dtype=float).reshape(-1)
+    if q.shape != (gripper.n_joints,) or not np.all(np.isfinite(q)):
+        raise InvalidInputError(
+            f"q must hold {gripper.n_joints} finite values, one per actuated joint "
+            f"{list(gripper.joint_names)}, got {q.shape[0]}"
+        )
+    outside = [
+        f"{name}={value:g} not in [{lo:g}, {hi:g}]"
+        for name, value, lo, hi in zip(gripper.joint_names, q, gripper.lower, gripper.upper)
+        if not lo - 1e-12 <= value <= hi + 1e-12
+    ]
+    if outside:
+        raise InvalidInputError(f"initial joints outside their limits: {', '.join(outside)}")
+    return gripper.clip(q)

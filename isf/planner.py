@@ -35,9 +35,8 @@ import numpy as np
 from .clearance import ClearanceRepair, repair_penetration
 from .collision import CollisionChecker, CollisionReport, Plane
 from .config import FitConfig
-from .fit import _check_joints, _check_pose
-from .lockstep import LockstepFitter
 from .gripper import Gripper
+from .lockstep import LockstepFitter
 from .object_surface import ObjectSurface
 from .result import FitResult
 from .samplers import Outcome, Proposal, Sampler, get_sampler
@@ -230,7 +229,7 @@ def plan(
         while fitter.n_active < _slots(sampler, batch_size) and len(proposals) + len(grasps) < samples:
             (proposal,) = sampler.propose(1, rng)
             index = len(proposals) + len(grasps)
-            fitter.add(index, _check_pose(proposal.T_object_gripper), _check_joints(gripper, proposal.q))
+            fitter.add(index, proposal.T_object_gripper, proposal.q)
             proposals[index] = proposal
         t0 = time.perf_counter()
         finished = fitter.step()
