@@ -49,13 +49,13 @@ from typing import NamedTuple
 
 import numpy as np
 import osqp
-import pinocchio as pin
 import scipy.sparse as sp
 import trimesh
 from scipy.spatial import cKDTree
 
-from .config import FitConfig
 from .collision import Plane
+from .collision_surface import closed_mesh
+from .config import FitConfig
 from .correspondence import match
 from .exceptions import ConfigError, GripperDescriptionError
 from .gripper import Gripper
@@ -237,7 +237,6 @@ class ClearanceRepair:
                 "elements"])
         self.gripper, self.object, self.obstacles = gripper, obj, tuple(obstacles)
         self.config = cfg = RepairConfig() if config is None else config
-        self._data = gripper.model.createData()
         rng = np.random.default_rng(0)
         self._surface_points, self._surface_normals = _dense_surface(obj, cfg.object_spacing, rng)
         self._tree = cKDTree(self._surface_points)
@@ -270,18 +269,8 @@ class ClearanceRepair:
     # ------------------------------------------------------------ kinematics
     def _frame_jacobians(self, q: np.ndarray, frames: np.ndarray):
         """Rotations (F, 3, 3), origins (F, 3) and Jacobians (F, 6, n) of frames, gripper frame."""
-        model, data = self.gripper.model, self._data
-        pin.computeJointJacobians(model, data, q)
-        pin.updateFramePlacements(model, data)
-        n = model.nv
-        R = np.empty((len(frames), 3, 3))
-        p = np.empty((len(frames), 3))
-        J = np.empty((len(frames), 6, n))
-        for k, fid in enumerate(frames.tolist()):
-            R[k] = data.oMf[fid].rotation
-            p[k] = data.oMf[fid].translation
-            J[k] = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED).reshape(6, n)
-        return R, p, J
+        k = self.gripper.frame_kinematics_many(q[None], frames)
+        return k.rotations[0], k.positions[0], np.concatenate([k.J_linear[0], k.J_angular[0]], axis=1)
 
     @staticmethod
     def _points_and_rows(points_link, owner, R, p, J, T, centre, normals):
@@ -578,11 +567,8 @@ class ClearanceRepair:
 def _dense_surface(obj: ObjectSurface, spacing: float, rng: np.random.Generator):
     """The object's points and normals, plus area-uniform samples of its mesh at ``spacing`` when
     it is a closed, outward mesh (a point cloud or an open mesh gives its own points only)."""
-    if not obj.is_mesh or spacing >= obj.spacing:
-        return obj.points, obj.normals
-    mesh = trimesh.Trimesh(np.asarray(obj.mesh_vertices, float),
-                           np.asarray(obj.mesh_faces, np.int64), process=False, validate=False)
-    if not (mesh.is_watertight and mesh.is_winding_consistent and mesh.volume > 0):
+    mesh = None if spacing >= obj.spacing else closed_mesh(obj)
+    if mesh is None:
         return obj.points, obj.normals
     count = int(np.clip(mesh.area / spacing**2, 1, _MAX_OBJECT_SAMPLES))
     points, face = trimesh.sample.sample_surface(mesh, count, seed=int(rng.integers(2**31)))

@@ -65,10 +65,9 @@ from dataclasses import dataclass
 import coal
 import numpy as np
 import pinocchio as pin
-import trimesh
 
 from .collision_elements import Element, bvh, even_samples, point_triangle_distance
-from .collision_surface import TangentPlanes
+from .collision_surface import TangentPlanes, closed_mesh
 from .exceptions import GripperDescriptionError, InvalidInputError
 from .gripper import Gripper
 from .object_surface import ObjectSurface
@@ -222,12 +221,9 @@ class CollisionChecker:
     @staticmethod
     def _object_samples(obj: ObjectSurface, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, float]:
         """Dense samples of a closed, outward mesh object (points, normals, spacing); else the object's own."""
-        if not obj.is_mesh:
-            return obj.points, obj.normals, obj.spacing
-        mesh = trimesh.Trimesh(np.asarray(obj.mesh_vertices, float), np.asarray(obj.mesh_faces, np.int64),
-                               process=False, validate=False)
-        if not (mesh.is_watertight and mesh.is_winding_consistent and mesh.volume > 0):
-            logger.debug("%s: mesh not closed and outward; collision checks use its points", obj.name)
+        mesh = closed_mesh(obj)
+        if mesh is None:
+            logger.debug("%s: not a closed, outward mesh; collision checks use its points", obj.name)
             return obj.points, obj.normals, obj.spacing
         spacing = min(obj.spacing, _OBJECT_SPACING)
         points, normals = even_samples(mesh, spacing, _MAX_OBJECT_SAMPLES, rng)

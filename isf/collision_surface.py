@@ -8,6 +8,7 @@ inside only when it lies below every nearby tangent plane (see :mod:`isf.collisi
 from __future__ import annotations
 
 import numpy as np
+import trimesh
 from scipy.spatial import cKDTree
 
 NEIGHBOURS = 6  # tangent planes of the nearest surface points a point must lie below to be inside
@@ -46,3 +47,14 @@ class TangentPlanes:
         """Deepest of the points (M, 3) below the surface, metres (0 if none)."""
         sd = self.signed_distance(query)
         return float(max(0.0, -sd.min())) if len(sd) else 0.0
+
+
+def closed_mesh(obj) -> trimesh.Trimesh | None:
+    """The object's mesh when it is closed and outward (watertight, consistent winding, positive
+    volume), so that it can be resampled densely for inside/outside tests; else None (a point
+    cloud, or an open or inward mesh). ``obj``: an :class:`isf.ObjectSurface`."""
+    if not obj.is_mesh:
+        return None
+    mesh = trimesh.Trimesh(np.asarray(obj.mesh_vertices, float), np.asarray(obj.mesh_faces, np.int64),
+                           process=False, validate=False)
+    return mesh if mesh.is_watertight and mesh.is_winding_consistent and mesh.volume > 0 else None

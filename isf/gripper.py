@@ -212,13 +212,18 @@ class Gripper:
     def link_kinematics_many(self, Q: np.ndarray) -> LinkKinematics:
         """:meth:`link_kinematics` of B joint vectors ``Q`` (B, n_joints): every array gains a
         leading axis of length B."""
+        return self.frame_kinematics_many(Q, self._link_frames)
+
+    def frame_kinematics_many(self, Q: np.ndarray, frames: np.ndarray) -> LinkKinematics:
+        """Poses and Jacobians of any Pinocchio frames (ids (F,)) at B joint vectors ``Q``
+        (B, n_joints), gripper frame: arrays (B, F, ...) as in :class:`LinkKinematics`."""
         model, data = self.model, self._data
-        Q = np.asarray(Q, dtype=float).reshape(-1, model.nq)
-        n_links = len(self._link_frames)
-        R = np.empty((len(Q), n_links, 3, 3))
-        p = np.empty((len(Q), n_links, 3))
-        J = np.empty((len(Q), n_links, 6, model.nv))
-        frames = self._link_frames.tolist()
+        Q = np.asarray(Q, dtype=float)
+        Q = Q.reshape(len(Q) if Q.ndim == 2 else 1, model.nq)  # (-1, 0) cannot be inferred
+        frames = np.asarray(frames, dtype=int).tolist()
+        R = np.empty((len(Q), len(frames), 3, 3))
+        p = np.empty((len(Q), len(frames), 3))
+        J = np.empty((len(Q), len(frames), 6, model.nv))
         for b, q in enumerate(Q):
             pin.computeJointJacobians(model, data, q)
             pin.updateFramePlacements(model, data)
@@ -226,7 +231,8 @@ class Gripper:
                 placement = data.oMf[fid]
                 R[b, k] = placement.rotation
                 p[b, k] = placement.translation
-                J[b, k] = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED).reshape(6, -1)
+                if model.nv:  # pin 4.1's getFrameJacobian crashes on a model without joints
+                    J[b, k] = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED).reshape(6, -1)
         return LinkKinematics(R, p, J[:, :, :3], J[:, :, 3:])
 
     def contact_kinematics(self, q: np.ndarray, mask: np.ndarray | None = None) -> ContactKinematics:

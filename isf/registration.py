@@ -969,12 +969,11 @@ def _closing_direction(posed: _Posed, link: str, toward: np.ndarray) -> np.ndarr
     the side of most fingers). Unchanged when that joint is prismatic or the rest is too small.
     """
     model = posed.model
-    data = model.createData()
     fid = model.getFrameId(link)
-    J = pin.computeFrameJacobian(model, data, posed.q, fid, pin.LOCAL_WORLD_ALIGNED)
     joint = model.frames[fid].parentJoint
     if joint == 0 or model.joints[joint].nv == 0:
         return toward
+    J = pin.computeFrameJacobian(model, model.createData(), posed.q, fid, pin.LOCAL_WORLD_ALIGNED)
     column = J[3:, model.joints[joint].idx_v]
     if np.linalg.norm(column) < 1e-9:  # a prismatic joint turns nothing
         return toward

@@ -187,3 +187,26 @@ def test_fits_in_lockstep_equal_fits_alone(paper_gripper):
         np.testing.assert_allclose(batched.T_object_gripper, alone.T_object_gripper, atol=1e-12)
         np.testing.assert_allclose(batched.q, alone.q, atol=1e-12)
     assert len({r.iterations for r in together}) > 1  # the fits left the batch at different times
+
+
+def test_a_gripper_without_joints_fits_by_its_palm_alone(tmp_path):
+    """A rigid tool (one fixed pad, no joint): ISF moves the palm only and seats the pad on
+    the box top, 7.5 mm above the box centre; the planner runs too."""
+    urdf = tmp_path / "rigid.urdf"
+    urdf.write_text(
+        '<robot name="rigid" xmlns:isf="urn:isf:gripper:1">'
+        '<link name="palm"><collision><geometry><box size="0.04 0.04 0.01"/></geometry></collision></link>'
+        '<link name="pad"><collision><geometry><box size="0.01 0.01 0.002"/></geometry></collision></link>'
+        '<joint name="fix" type="fixed"><parent link="palm"/><child link="pad"/>'
+        '<origin xyz="0 0 0.01"/></joint>'
+        '<isf:contact name="pad" link="pad" normal="0 0 1" points="64"/></robot>'
+    )
+    tool = isf.load_gripper(urdf)
+    assert tool.n_joints == 0
+    box = isf.open_object("shape:box")  # 50 x 20 x 15 mm, centred
+    upside_down = make_transform(np.diag([1.0, -1.0, -1.0]), [0.003, 0.001, 0.0205])
+    result = isf.fit(tool, box, upside_down)
+    # the pad's top face (gripper z = 11 mm) on the box top (z = 7.5 mm): palm at z = 18.5 mm
+    assert result.T_object_gripper[2, 3] == pytest.approx(0.0185, abs=1e-6)
+    assert result.mean_distance < 1e-6 and result.q.shape == (0,)
+    assert isf.plan(tool, box, samples=4, seed=0).stats.collision_free >= 1
