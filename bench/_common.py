@@ -153,7 +153,7 @@ def default_batch_size() -> int:
 
 
 def plan_once(gripper, obj, samples: int, seed: int, config=None, batch_size: int | None = None,
-              sampler="regret", repair_collisions: bool | None = None) -> dict:
+              sampler="regret", repair_collisions: bool | None = None, **plan_kwargs) -> dict:
     """One ``isf.plan``: wall and CPU time, stage times, counts, fit quality.
 
     Args:
@@ -163,17 +163,22 @@ def plan_once(gripper, obj, samples: int, seed: int, config=None, batch_size: in
         sampler: a sampler name or instance (default the regret bandit).
         repair_collisions: passed to ``isf.plan`` (None: its default, on; False: the paper's
             Algorithm 3 without the collision repair).
+        **plan_kwargs: further keyword arguments of ``isf.plan`` (e.g. ``working_spacing``).
 
     Returns:
         a dict of floats: ``t_total`` (``PlanStats.total_time``, s), ``cpu`` (process time around
         the call, s), ``setup``/``fit``/``collision`` (stage times, s), ``free`` and ``valid``
         (counts), ``per_free`` (s per collision-free grasp), ``error`` (mean
-        ``FitResult.mean_distance`` of the collision-free grasps, m; NaN when none) and
+        ``FitResult.mean_distance`` of the collision-free grasps, m; NaN when none),
+        ``error_full`` (the same grasps' contact points measured against every point of ``obj``,
+        see :func:`surface_error`, m), ``surface_points`` (``PlanStats.surface_points``) and
         ``iterations`` (mean ISF iterations per sample).
     """
     import isf
 
-    kwargs = {} if batch_size is None else {"batch_size": batch_size}
+    kwargs = dict(plan_kwargs)
+    if batch_size is not None:
+        kwargs["batch_size"] = batch_size
     if repair_collisions is not None:
         kwargs["repair_collisions"] = repair_collisions
     cpu = time.process_time()
@@ -186,7 +191,24 @@ def plan_once(gripper, obj, samples: int, seed: int, config=None, batch_size: in
             "collision": s.collision_time, "free": s.collision_free, "valid": s.valid,
             "per_free": s.total_time / s.collision_free if s.collision_free else float("inf"),
             "error": statistics.fmean(g.fit.mean_distance for g in free) if free else float("nan"),
+            "error_full": (statistics.fmean(surface_error(g.fit, obj) for g in free) if free
+                           else float("nan")),
+            "surface_points": s.surface_points,
             "iterations": statistics.fmean(g.fit.iterations for g in result.grasps)}
+
+
+def surface_error(fit, obj) -> float:
+    """Mean absolute point-to-plane distance of a fit's matched contact points
+    (``FitResult.contact_points``, object frame) to ``obj``'s nearest point and its normal, m:
+    the fit error measured against the whole surface even when the planner matched against a
+    thinned one (``PlanStats.surface_points``)."""
+    import numpy as np
+
+    if not len(fit.contact_points):
+        return float("nan")
+    _, nearest = obj.nearest(fit.contact_points)
+    offsets = fit.contact_points - obj.points[nearest]
+    return float(np.abs(np.einsum("ij,ij->i", offsets, obj.normals[nearest])).mean())
 
 
 def time_calls(fn: Callable[[], object], calls: int, warmup: int = 1) -> tuple[float, float]:

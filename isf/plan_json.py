@@ -70,6 +70,7 @@ def plan_to_dict(result: PlanResult, *, top: int | None = None) -> dict:
             "collision_time": s.collision_time,
             "setup_time": s.setup_time,
             "batch_size": s.batch_size,
+            "surface_points": s.surface_points,
         },
         "config": result.config.to_dict(),
     }

@@ -40,6 +40,7 @@ from .lockstep import LockstepFitter
 from .object_surface import ObjectSurface
 from .result import FitResult
 from .samplers import Outcome, Proposal, Sampler, get_sampler
+from .working_surface import working_spacing, working_surface
 
 __all__ = ["Grasp", "PlanResult", "PlanStats", "plan"]
 
@@ -111,6 +112,8 @@ class PlanStats:
         collision_time: time spent in collision checks, seconds.
         setup_time: time to prepare the sampler and the collision checker, seconds.
         batch_size: samples fitted at once (see :func:`plan`).
+        surface_points: object points the run matched against (see ``working_spacing`` of
+            :func:`plan`); 0 when not recorded.
     """
 
     samples: int
@@ -122,6 +125,7 @@ class PlanStats:
     collision_time: float
     setup_time: float
     batch_size: int = 1
+    surface_points: int = 0
 
 
 @dataclass(frozen=True, eq=False)
@@ -162,6 +166,21 @@ def _slots(sampler: Sampler, batch_size: int) -> int:
     return batch_size if limit is None else max(1, min(batch_size, int(limit)))
 
 
+def _working_spacing(value: float | str | None, gripper: Gripper) -> float:
+    """The ``working_spacing`` argument of :func:`plan` in metres (0: keep the object)."""
+    from .exceptions import InvalidInputError
+
+    if value is None:
+        return 0.0
+    if isinstance(value, str) and value == "auto":
+        return working_spacing(gripper)
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+            or not (np.isfinite(value) and value > 0):
+        raise InvalidInputError(f"working_spacing must be 'auto', None or a spacing > 0 in metres, "
+                                f"got {value!r}")
+    return float(value)
+
+
 def plan(
     gripper: Gripper | str | Path,
     obj: ObjectSurface | str | Path | np.ndarray,
@@ -174,6 +193,7 @@ def plan(
     collision_tolerance: float = 0.002,
     batch_size: int = BATCH_SIZE,
     repair_collisions: bool = True,
+    working_spacing: float | str | None = "auto",
     progress: Callable[[int, int, Grasp], None] | None = None,
 ) -> PlanResult:
     """Plan grasps of an object with a gripper (Algorithm 3).
@@ -214,6 +234,7 @@ def plan(
     config = FitConfig() if config is None else config
     gripper = gripper if isinstance(gripper, Gripper) else load_gripper(gripper)
     obj = obj if isinstance(obj, ObjectSurface) else load_object(obj)
+    obj = working_surface(obj, _working_spacing(working_spacing, gripper))
     sampler = get_sampler(sampler)
     rng = np.random.default_rng(seed)
     sampler.reset(obj, gripper, rng)
@@ -265,6 +286,6 @@ def plan(
         samples=samples, collision_free=n_free, valid=sum(g.valid for g in grasps),
         total_time=total, time_per_collision_free=total / n_free if n_free else float("inf"),
         fit_time=fit_time, collision_time=collision_time, setup_time=setup_time,
-        batch_size=int(batch_size),
+        batch_size=int(batch_size), surface_points=obj.n_points,
     )
     return PlanResult(tuple(grasps), stats, gripper.name, obj.name, sampler.name, seed, config)
