@@ -23,6 +23,7 @@ import numpy as np
 import osqp
 import scipy.sparse as sp
 
+from .box_qp import solve_box_qps
 from .exceptions import QPStepError
 
 __all__ = ["FingerStepQP", "finger_steps"]
@@ -113,8 +114,10 @@ def finger_steps(
     The QP is strictly convex, so when the minimiser of its objective lies inside the
     bounds it *is* the QP's solution: that is computed for all fits with one batched
     linear solve. With one joint the bounded solution is that minimiser clipped (the
-    paper's eq. 12-13). Only multi-joint fits whose minimiser leaves the bounds go to
-    their OSQP problem (``qps[b]``, set up once per fit, updated and warm-started).
+    paper's eq. 12-13). Multi-joint fits whose minimiser leaves the bounds get an
+    active-set solution (:func:`isf.box_qp.solve_box_qps`), kept where the KKT conditions
+    certify it; only the rest go to their OSQP problem (``qps[b]``, set up once per fit,
+    updated and warm-started).
 
     Args:
         AtA: normal matrices ``A^T A``, shape (B, n, n).
@@ -135,6 +138,10 @@ def finger_steps(
     if n == 1:
         return np.clip(dq, lower, upper), failed
     outside = np.flatnonzero(np.any((dq < lower) | (dq > upper), axis=1))
+    if len(outside):
+        exact, certified = solve_box_qps(H[outside], Atb[outside], lower[outside], upper[outside])
+        dq[outside[certified]] = exact[certified]
+        outside = outside[~certified]
     for b in outside.tolist():
         try:
             dq[b] = qps[b].solve_normal(AtA[b], Atb[b], lower[b], upper[b])

@@ -104,8 +104,25 @@ def test_finger_rows_are_the_derivative_of_the_residuals():
     np.testing.assert_allclose(A, fd, atol=1e-8)
 
 
-def test_batched_finger_steps_equal_osqp_per_fit():
-    """Interior minimisers come from one batched solve, the rest from OSQP: all equal BVLS."""
+@pytest.mark.parametrize("rounds", [1, None])
+def test_batched_finger_steps_equal_bvls(rounds, monkeypatch):
+    """Interior minimisers come from one batched solve, bounded ones from the certified active
+    set or (uncertified: forced here by allowing one active-set round) from OSQP: all equal
+    BVLS."""
+    import isf.finger_step as finger_step
+    from isf.box_qp import solve_box_qps
+
+    calls = {"osqp": 0}
+    if rounds is not None:
+        monkeypatch.setattr(finger_step, "solve_box_qps",
+                            lambda *args: solve_box_qps(*args, max_rounds=rounds))
+    solve_normal = FingerStepQP.solve_normal
+
+    def counting(self, *args):
+        calls["osqp"] += 1
+        return solve_normal(self, *args)
+
+    monkeypatch.setattr(FingerStepQP, "solve_normal", counting)
     rng = np.random.default_rng(3)
     n, B = 6, 40
     A = rng.normal(size=(B, 30, n))
@@ -121,7 +138,8 @@ def test_batched_finger_steps_equal_osqp_per_fit():
         ref = lsq_linear(A[k], b[k], bounds=(lower[k], upper[k]), method="bvls", tol=1e-14).x
         np.testing.assert_allclose(dq[k], ref, atol=1e-8)
         bound_active += bool(np.any(np.isclose(ref, lower[k]) | np.isclose(ref, upper[k])))
-    assert 0 < bound_active < B  # both paths were exercised
+    assert 0 < bound_active < B  # interior and bounded solutions were both exercised
+    assert (calls["osqp"] > 0) == (rounds == 1)  # and OSQP only for uncertified guesses
 
 
 def test_an_iterate_at_the_iteration_cap_is_kept_only_as_a_descent_step():

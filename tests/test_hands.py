@@ -109,7 +109,7 @@ def test_allegro_plans_collision_free_fingertip_grasps(allegro, can):
 def test_repair_turns_penetrating_allegro_fits_collision_free(allegro, can):
     """The issue's case: fits whose finger links go a few millimetres through the can.
 
-    Eight regret proposals are fitted; every fit that collides with at most 10 mm of
+    Twelve regret proposals are fitted; every fit that collides with at most 10 mm of
     penetration (the fingertips seated, links behind them inside; deeper fits are failed
     fits, not this case) must come out of the repair collision-free by the checker and by
     an independent trimesh depth check, within the joint limits, with a tip still on the can.
@@ -118,7 +118,7 @@ def test_repair_turns_penetrating_allegro_fits_collision_free(allegro, can):
     rng = np.random.default_rng(0)
     sampler = isf.samplers.get_sampler("regret")
     sampler.reset(obj, allegro, rng)
-    proposals = sampler.propose(8, rng)
+    proposals = sampler.propose(12, rng)
     fits = isf.fit_many(allegro, obj, np.stack([p.T_object_gripper for p in proposals]))
     checker = CollisionChecker(allegro, obj)
     samples = link_samples(allegro)
