@@ -32,7 +32,7 @@ logger = logging.getLogger(__name__)
 
 
 class FingerStepQP:
-    """One OSQP problem over ``n`` joints, set up once, then updated and warm-started.
+    """One OSQP problem over ``n`` joints, set up on its first solve, then updated and warm-started.
 
     Args:
         n: number of joints.
@@ -43,19 +43,27 @@ class FingerStepQP:
     def __init__(self, n: int, damping: float, max_iter: int = 4000):
         self.n = n
         self.damping = damping
+        self.max_iter = max_iter
         rows, cols = np.triu_indices(n)
         order = np.lexsort((rows, cols))  # column-major: CSC order of the upper triangle
         self._rows, self._cols = rows[order], cols[order]
-        indptr = np.r_[0, np.cumsum(np.bincount(self._cols, minlength=n))]
-        # A dense upper-triangle pattern (explicit ones): later Px updates must
-        # have the same length, and csc_matrix(dense) would drop exact zeros.
-        P = sp.csc_matrix((np.ones(len(self._rows)), self._rows, indptr), shape=(n, n))
-        self._solver = osqp.OSQP()
-        self._solver.setup(
-            P, np.zeros(n), sp.identity(n, format="csc"), -np.ones(n), np.ones(n),
-            verbose=False, eps_abs=1e-10, eps_rel=1e-10, polishing=False, max_iter=max_iter,
-        )
+        self._solver: osqp.OSQP | None = None  # most fits never need OSQP (see finger_steps)
         self._x = np.zeros(n)
+
+    def _setup(self) -> osqp.OSQP:
+        """The OSQP solver, set up on first use."""
+        if self._solver is None:
+            n = self.n
+            indptr = np.r_[0, np.cumsum(np.bincount(self._cols, minlength=n))]
+            # A dense upper-triangle pattern (explicit ones): later Px updates must
+            # have the same length, and csc_matrix(dense) would drop exact zeros.
+            P = sp.csc_matrix((np.ones(len(self._rows)), self._rows, indptr), shape=(n, n))
+            self._solver = osqp.OSQP()
+            self._solver.setup(
+                P, np.zeros(n), sp.identity(n, format="csc"), -np.ones(n), np.ones(n),
+                verbose=False, eps_abs=1e-10, eps_rel=1e-10, polishing=False, max_iter=self.max_iter,
+            )
+        return self._solver
 
     def reset(self) -> None:
         """Forget the warm start (before the problem serves another fit)."""
@@ -83,7 +91,7 @@ class FingerStepQP:
         H = 2.0 * AtA
         H[np.diag_indices(self.n)] += 2.0 * self.damping
         g = -2.0 * Atb
-        s = self._solver
+        s = self._setup()
         s.update(Px=H[self._rows, self._cols], q=g, l=lower, u=upper)
         s.warm_start(x=np.clip(self._x, lower, upper))
         res = s.solve(raise_error=False)
@@ -130,13 +138,14 @@ def finger_steps(
         ``dq`` (B, n) and a mask (B,) of fits whose QP OSQP could not solve (their ``dq`` is 0).
     """
     n = AtA.shape[1]
-    H = AtA + damping * np.eye(n)
+    eye = np.eye(n)
+    H = AtA + damping * eye
     # A relative ridge only for singular systems; it cannot change a well-posed answer.
     ridge = 1e-14 * np.maximum(np.trace(H, axis1=1, axis2=2), 1e-300)
-    dq = np.linalg.solve(H + ridge[:, None, None] * np.eye(n), Atb[:, :, None])[:, :, 0]
-    failed = np.zeros(len(dq), dtype=bool)
-    if n == 1:
-        return np.clip(dq, lower, upper), failed
+    failed = np.zeros(len(H), dtype=bool)
+    if n == 1:  # a 1x1 solve is one division (the same number LAPACK returns)
+        return np.clip(Atb / (H[:, :, 0] + ridge[:, None]), lower, upper), failed
+    dq = np.linalg.solve(H + ridge[:, None, None] * eye, Atb[:, :, None])[:, :, 0]
     outside = np.flatnonzero(np.any((dq < lower) | (dq > upper), axis=1))
     if len(outside):
         exact, certified = solve_box_qps(H[outside], Atb[outside], lower[outside], upper[outside])

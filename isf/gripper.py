@@ -221,18 +221,17 @@ class Gripper:
         Q = np.asarray(Q, dtype=float)
         Q = Q.reshape(len(Q) if Q.ndim == 2 else 1, model.nq)  # (-1, 0) cannot be inferred
         frames = np.asarray(frames, dtype=int).tolist()
-        R = np.empty((len(Q), len(frames), 3, 3))
-        p = np.empty((len(Q), len(frames), 3))
+        H = np.empty((len(Q), len(frames), 4, 4))
         J = np.empty((len(Q), len(frames), 6, model.nv))
-        for b, q in enumerate(Q):
+        world_aligned, placements = pin.LOCAL_WORLD_ALIGNED, data.oMf
+        for q, H_b, J_b in zip(Q, H, J):
             pin.computeJointJacobians(model, data, q)
             pin.updateFramePlacements(model, data)
             for k, fid in enumerate(frames):
-                placement = data.oMf[fid]
-                R[b, k] = placement.rotation
-                p[b, k] = placement.translation
+                H_b[k] = placements[fid].homogeneous
                 if model.nv:  # pin 4.1's getFrameJacobian crashes on a model without joints
-                    J[b, k] = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED).reshape(6, -1)
+                    J_b[k] = pin.getFrameJacobian(model, data, fid, world_aligned).reshape(6, -1)
+        R, p = np.ascontiguousarray(H[:, :, :3, :3]), np.ascontiguousarray(H[:, :, :3, 3])
         return LinkKinematics(R, p, J[:, :, :3], J[:, :, 3:])
 
     def contact_kinematics(self, q: np.ndarray, mask: np.ndarray | None = None) -> ContactKinematics:

@@ -155,6 +155,8 @@ def _kinematics_where(gripper: Gripper, links: LinkKinematics, q: np.ndarray, ma
     """Kinematics at ``q`` (B, n) for the fits in ``mask`` (B,); the others keep ``links``."""
     if mask.all():
         return gripper.link_kinematics_many(q)
+    if not mask.any():
+        return links
     fresh = gripper.link_kinematics_many(q[mask])
     arrays = [a.copy() for a in links]
     for a, f in zip(arrays, fresh):
@@ -163,7 +165,7 @@ def _kinematics_where(gripper: Gripper, links: LinkKinematics, q: np.ndarray, ma
 
 
 def ipfo(pairs: PairBatch, T: np.ndarray, q: np.ndarray, qps: list[FingerStepQP] | None,
-         config: FitConfig) -> IPFOResult:
+         config: FitConfig, links: LinkKinematics | None = None) -> IPFOResult:
     """Alternate palm and finger steps until E stops decreasing (Algorithm 1), for each fit.
 
     A fit stops when its E per pair decreases by less than ``config.ipfo_tolerance``,
@@ -177,17 +179,19 @@ def ipfo(pairs: PairBatch, T: np.ndarray, q: np.ndarray, qps: list[FingerStepQP]
         q: initial joints, (B, n_joints).
         qps: one finger-step QP per fit (reused across calls), or None for a gripper without joints.
         config: fit parameters.
+        links: the contact-link kinematics at ``q`` when the caller has them (arrays (B, L, ...)).
     """
     gripper, seg = pairs.gripper, pairs.segments
     alpha = config.normal_weight
     n_fits = len(seg)
     moments = PairMoments(seg.ids, pairs.link, pairs.points_link, pairs.normals_link, pairs.targets,
-                          pairs.target_normals, n_fits)
+                          pairs.target_normals, n_fits, len(gripper.contact_links))
     threshold = config.ipfo_tolerance * seg.counts
     move_fingers = qps is not None and not config.lock_fingers
     step = np.where(gripper.revolute, config.max_revolute_step, np.inf)
     T, q = T.copy(), q.copy()
-    links = gripper.link_kinematics_many(q)
+    if links is None:
+        links = gripper.link_kinematics_many(q)
     error = moments.errors(T, links, alpha)
     errors: list[list[float]] = [[] for _ in range(n_fits)]
     active = np.ones(n_fits, dtype=bool)
@@ -201,16 +205,19 @@ def ipfo(pairs: PairBatch, T: np.ndarray, q: np.ndarray, qps: list[FingerStepQP]
             upper = np.maximum(np.minimum(gripper.upper - q, step), 0.0)
             dq, _ = finger_steps(AtA, Atb, lower, upper, config.finger_damping, qps)
             q_new = gripper.clip(q + dq)
-            links_new = _kinematics_where(gripper, links, q_new, active)
+            moved = active & np.any(q_new != q, axis=1)  # same joints, same kinematics
+            links_new = _kinematics_where(gripper, links, q_new, moved)
         error_new = moments.errors(T_new, links_new, alpha)
         accept = active & (error_new <= error)
         decrease = error - error_new
         T = np.where(accept[:, None, None], T_new, T)
         q = np.where(accept[:, None], q_new, q)
-        links = _select(accept, links_new, links)
+        if links_new is not links:
+            links = _select(accept, links_new, links)
         error = np.where(accept, error_new, error)
+        kept = error.tolist()
         for b in np.flatnonzero(accept).tolist():
-            errors[b].append(float(error[b]))
+            errors[b].append(kept[b])
         active = accept & (decrease > threshold)
         if not active.any():
             break

@@ -20,6 +20,7 @@ after ``I_l = I0 / 2**l`` iterations. A gripper that does not move at all
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Hashable
 from dataclasses import dataclass, field
@@ -53,6 +54,7 @@ class _Fit:
     start: np.ndarray = field(default=None, repr=False)  # their positions when the level began
     current: np.ndarray = field(default=None, repr=False)
     current_normals: np.ndarray = field(default=None, repr=False)
+    links: LinkKinematics = field(default=None, repr=False)  # kinematics at q, arrays (1, L, ...)
     max_iterations: int = 0
     eps: float = 0.0
     iteration: int = 0
@@ -115,7 +117,7 @@ class LockstepFitter:
 
     def _enter_level(self, fit: _Fit, level: int, links: LinkKinematics) -> None:
         """Start pyramid level ``level``; ``links``: the fit's kinematics (leading axis of 1)."""
-        fit.level = level
+        fit.level, fit.links = level, links
         fit.index = self._levels[level]
         fit.max_iterations = max(1, self.config.max_iterations // 2**level)
         fit.eps = 2**level * self.config.tolerance
@@ -160,14 +162,17 @@ class LockstepFitter:
         T = np.stack([f.T for f in fits])
         q = np.stack([f.q for f in fits]).reshape(len(fits), self.gripper.n_joints)
         qps = [f.qp for f in fits] if self.gripper.n_joints else None
-        result = ipfo(batch, T, q, qps, self.config)
+        links = LinkKinematics(*(np.concatenate(a) for a in zip(*(f.links for f in fits))))
+        result = ipfo(batch, T, q, qps, self.config, links)
         current, current_normals = self._level_points(fits, result.T_object_gripper, result.links)
         for b, f in enumerate(fits):
             f.T, f.q = result.T_object_gripper[b], result.q[b]
+            f.links = LinkKinematics(*(a[b:b + 1] for a in result.links))
             f.current, f.current_normals = current[b], current_normals[b]
             f.iteration += 1
             previous = f.displacement
-            f.displacement = float(np.linalg.norm(f.current - f.start))
+            moved = (f.current - f.start).ravel()
+            f.displacement = math.sqrt(moved @ moved)  # np.linalg.norm's own formula
             f.eta = 1.0 if f.displacement <= 1e-12 else f.displacement / previous
             f.history.append(IterationRecord(
                 level=f.level, iteration=f.iteration, mean_distance=float(result.mean_distance[b]),
@@ -179,8 +184,7 @@ class LockstepFitter:
                     f.status = FitStatus.CONVERGED if f.level_converged() else FitStatus.MAX_ITERATIONS
                     finished.append(f)
                 else:
-                    own = LinkKinematics(*(a[b:b + 1] for a in result.links))
-                    self._enter_level(f, f.level - 1, own)
+                    self._enter_level(f, f.level - 1, f.links)
 
     def _level_points(self, fits: list[_Fit], T: np.ndarray, links: LinkKinematics):
         """Each fit's level points and normals at its new state, object frame: lists of (k_b, 3)."""
@@ -227,9 +231,7 @@ def outlier_groups(gripper: Gripper, fits: Segments, point_index: np.ndarray,
     """
     if config.outlier_scope == "fit":
         return None
-    surface = gripper.point_surface[point_index]
-    new = np.r_[True, (surface[1:] != surface[:-1]) | (fits.ids[1:] != fits.ids[:-1])]
-    return Segments(np.cumsum(new) - 1)
+    return Segments.runs(gripper.point_surface[point_index], fits.ids)
 
 
 def score_fit(gripper: Gripper, obj: ObjectSurface, T: np.ndarray, q: np.ndarray, config: FitConfig,

@@ -13,6 +13,8 @@ from .segments import Segments
 
 __all__ = ["palm_motions", "palm_step", "palm_steps"]
 
+_EYE6 = np.eye(6)
+
 
 def palm_steps(
     points: np.ndarray,
@@ -70,8 +72,9 @@ def palm_motions(H: np.ndarray, g: np.ndarray, centre: np.ndarray, max_rotation:
     # A tiny ridge keeps directions the surfaces leave free (a pad sliding on a
     # plane) at zero motion instead of letting round-off move them.
     ridge = 1e-12 * np.maximum(np.trace(H, axis1=1, axis2=2), 1e-300)
-    x = np.linalg.solve(H + ridge[:, None, None] * np.eye(6), g[:, :, None])[:, :, 0]
-    angle = np.linalg.norm(x[:, :3], axis=1)
+    x = np.linalg.solve(H + ridge[:, None, None] * _EYE6, g[:, :, None])[:, :, 0]
+    r = x[:, :3]
+    angle = np.sqrt(np.add.reduce(r * r, axis=1))  # np.linalg.norm(r, axis=1), without its overhead
     x *= np.minimum(1.0, max_rotation / np.maximum(angle, 1e-300))[:, None]
     R = exp_so3_many(x[:, :3])
     T = np.zeros((len(x), 4, 4))

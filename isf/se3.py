@@ -22,18 +22,21 @@ def exp_so3(r: np.ndarray) -> np.ndarray:
     return np.eye(3) + (np.sin(theta) / theta) * K + ((1.0 - np.cos(theta)) / theta**2) * (K @ K)
 
 
+_EYE3 = np.eye(3)
+_SKEW = np.array([skew(e) for e in _EYE3]).reshape(3, 9)
+"""``r @ _SKEW`` is ``vec([r]x)`` for rows r (B, 3), exactly (one nonzero term per entry)."""
+
+
 def exp_so3_many(r: np.ndarray) -> np.ndarray:
     """Rotation matrices of axis-angle vectors ``r`` (B, 3), radians, (B, 3, 3) (Rodrigues)."""
     theta2 = np.einsum("bi,bi->b", r, r)
     theta = np.sqrt(theta2)
-    K = np.zeros((len(r), 3, 3))
-    K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -r[:, 2], r[:, 1], -r[:, 0]
-    K[:, 1, 0], K[:, 2, 0], K[:, 2, 1] = r[:, 2], -r[:, 1], r[:, 0]
+    K = (r @ _SKEW).reshape(-1, 3, 3)
     small = theta < 1e-9
     safe = np.where(small, 1.0, theta)
     a = np.where(small, 1.0, np.sin(safe) / safe)
     b = np.where(small, 0.5, (1.0 - np.cos(safe)) / safe**2)
-    return np.eye(3) + a[:, None, None] * K + b[:, None, None] * (K @ K)
+    return _EYE3 + a[:, None, None] * K + b[:, None, None] * (K @ K)
 
 
 def rotation_angle(R: np.ndarray) -> float:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["Segments"]
+__all__ = ["Segments", "run_starts"]
 
 
 class Segments:
@@ -18,7 +18,8 @@ class Segments:
     def __init__(self, ids: np.ndarray):
         self.ids = np.asarray(ids, dtype=np.intp)
         self.counts = np.bincount(self.ids)
-        self.starts = np.r_[0, np.cumsum(self.counts)[:-1]].astype(np.intp)
+        self.starts = np.zeros(len(self.counts), dtype=np.intp)
+        np.cumsum(self.counts[:-1], out=self.starts[1:])
         if np.any(self.counts == 0):
             raise ValueError("every segment must hold at least one row")
 
@@ -26,6 +27,12 @@ class Segments:
     def single(cls, n_rows: int) -> Segments:
         """One group of ``n_rows`` rows."""
         return cls(np.zeros(n_rows, dtype=np.intp))
+
+    @classmethod
+    def runs(cls, *keys: np.ndarray) -> Segments:
+        """One group per run of consecutive rows with equal keys (each key (K,); a row starts a
+        new group when any key differs from the row before)."""
+        return cls(np.cumsum(run_starts(*keys)) - 1)
 
     @classmethod
     def from_counts(cls, counts: np.ndarray) -> Segments:
@@ -47,3 +54,12 @@ class Segments:
     def slices(self) -> list[slice]:
         """The rows of each group, as slices."""
         return [slice(int(a), int(a + n)) for a, n in zip(self.starts, self.counts)]
+
+
+def run_starts(*keys: np.ndarray) -> np.ndarray:
+    """Rows (K,) that start a run of equal keys: the first row and every row where a key changes."""
+    first = np.zeros(len(keys[0]), dtype=bool)
+    first[:1] = True
+    for key in keys:
+        first[1:] |= key[1:] != key[:-1]
+    return first

@@ -154,14 +154,18 @@ def test_an_unsolvable_finger_step_is_skipped_not_fatal(monkeypatch, caplog):
     """If OSQP fails on a finger step the fit goes on moving the palm only, and says so.
 
     A revolute step cap of 1e-6 rad makes every joint bound active, so each finger step
-    goes to OSQP (an interior minimiser is solved without it).
+    leaves the interior; with the active-set certificate refused, each goes to OSQP.
     """
-    from isf.finger_step import FingerStepQP
+    import isf.finger_step as finger_step
 
     def fail(self, AtA, Atb, lower, upper):
         raise isf.QPStepError({"P": AtA}, "primal infeasible")
 
-    monkeypatch.setattr(FingerStepQP, "solve_normal", fail)
+    def uncertified(H, c, lower, upper):
+        return np.zeros_like(c), np.zeros(len(c), dtype=bool)
+
+    monkeypatch.setattr(finger_step.FingerStepQP, "solve_normal", fail)
+    monkeypatch.setattr(finger_step, "solve_box_qps", uncertified)
     hand = isf.load_gripper("three-finger")
     obj = isf.open_object("shape:sphere")
     T0 = make_transform(np.eye(3), obj.centroid - [0.0, 0.0, 0.08])
