@@ -7,6 +7,8 @@ inside only when it lies below every nearby tangent plane (see :mod:`isf.collisi
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 import trimesh
 from scipy.spatial import cKDTree
@@ -49,12 +51,35 @@ class TangentPlanes:
         return float(max(0.0, -sd.min())) if len(sd) else 0.0
 
 
+_MESH_MEMOS: dict[int, tuple[weakref.ref, weakref.ref, dict]] = {}
+
+
+def mesh_memo(obj) -> dict:
+    """A dict for what is derived from a mesh object's arrays (``obj.mesh_vertices``,
+    ``obj.mesh_faces``, treated as immutable), kept while those arrays live: the collision
+    checker and the repair of every plan on the object, or on its thinned working surface
+    (which shares them), build it once. ``obj``: an :class:`isf.ObjectSurface` with a mesh."""
+    vertices, faces = obj.mesh_vertices, obj.mesh_faces
+    entry = _MESH_MEMOS.get(id(faces))
+    if entry is not None and entry[0]() is faces and entry[1]() is vertices:
+        return entry[2]
+    memo: dict = {}
+    _MESH_MEMOS[id(faces)] = (weakref.ref(faces), weakref.ref(vertices), memo)
+    weakref.finalize(faces, _MESH_MEMOS.pop, id(faces), None)
+    return memo
+
+
 def closed_mesh(obj) -> trimesh.Trimesh | None:
     """The object's mesh when it is closed and outward (watertight, consistent winding, positive
     volume), so that it can be resampled densely for inside/outside tests; else None (a point
     cloud, or an open or inward mesh). ``obj``: an :class:`isf.ObjectSurface`."""
     if not obj.is_mesh:
         return None
-    mesh = trimesh.Trimesh(np.asarray(obj.mesh_vertices, float), np.asarray(obj.mesh_faces, np.int64),
-                           process=False, validate=False)
-    return mesh if mesh.is_watertight and mesh.is_winding_consistent and mesh.volume > 0 else None
+    memo = mesh_memo(obj)
+    if "closed" not in memo:
+        # copies: the memo must not keep the arrays it is keyed on alive
+        mesh = trimesh.Trimesh(np.array(obj.mesh_vertices, float), np.array(obj.mesh_faces, np.int64),
+                               process=False, validate=False)
+        closed = mesh.is_watertight and mesh.is_winding_consistent and mesh.volume > 0
+        memo["closed"] = mesh if closed else None
+    return memo["closed"]

@@ -38,6 +38,9 @@ class ObjectSurface:
     def __post_init__(self) -> None:
         self.points = np.ascontiguousarray(self.points, dtype=np.float64)
         self.normals = np.ascontiguousarray(self.normals, dtype=np.float64)
+        if self.mesh_faces is not None:
+            self.mesh_vertices = np.asarray(self.mesh_vertices, dtype=np.float64)
+            self.mesh_faces = np.asarray(self.mesh_faces, dtype=np.int64)
         self._tree = cKDTree(self.points)
 
     @property
