@@ -52,7 +52,7 @@ def test_a_wrong_guess_is_not_certified():
     H = np.array([[[1.0, 0.9], [0.9, 1.0]]])
     c = np.array([[2.0, -1.0]])
     lower, upper = np.array([[-0.1, -0.1]]), np.array([[0.1, 0.1]])
-    x1, ok1 = solve_box_qps(H, c, lower, upper, max_rounds=1)
+    _, ok1 = solve_box_qps(H, c, lower, upper, max_rounds=1)
     assert not ok1[0]
     x, ok = solve_box_qps(H, c, lower, upper)
     assert ok[0]

@@ -2,14 +2,13 @@
 
 import numpy as np
 import pytest
+from _builders import cylinder_object
 from scipy.spatial import cKDTree
 
 import isf
 from isf.exceptions import InvalidInputError
 from isf.object_surface import ObjectSurface
 from isf.working_surface import SPACING_FACTOR, contact_spacing, working_spacing, working_surface
-
-from _builders import cylinder_object
 
 
 @pytest.fixture(scope="module")

@@ -1,0 +1,80 @@
+"""Does fitting samples in lockstep cost the regret bandit grasps? Paired collision-free counts.
+
+With ``batch_size=B`` the regret sampler hears each outcome up to B - 1 samples late. This
+script runs the Table I set (``bench/table1.py``'s objects, gripper, sampler and paper
+settings: random orientations, no repair) for every seed in ``--seeds`` at each batch size of
+``--batch-sizes`` and prints, per object, the mean collision-free count and mean fitting error
+per batch size and the mean paired difference to the last batch size (the reference, 1 by
+default), with its standard error over all (object, seed) pairs. The counts are deterministic
+for a seed, so the machine's load does not matter (the times are not reported).
+
+Run from the repository root:
+    python bench/bandit_delay.py [--seeds 6] [--batch-sizes 8,1] [--objects bunny,duck]
+"""
+
+from __future__ import annotations
+
+import _common  # noqa: I001  (first: pins BLAS/OpenMP threads before numpy is imported)
+
+import statistics  # noqa: E402
+import time  # noqa: E402
+
+import isf  # noqa: E402
+from table1 import DEFAULT_OBJECTS, GRIPPER, MAX_POINTS, paper_sampler  # noqa: E402
+
+
+def main() -> None:
+    parser = _common.base_parser(__doc__.splitlines()[0], repeats=1, budget=0.0)
+    parser.add_argument("--seeds", type=int, default=6, help="seeds 0..N-1 (default 6)")
+    parser.add_argument("--batch-sizes", default="8,1",
+                        help="comma-separated batch sizes; the last is the reference (default 8,1)")
+    parser.add_argument("--objects", default=",".join(DEFAULT_OBJECTS))
+    args = parser.parse_args()
+    sizes = [int(b) for b in args.batch_sizes.split(",")]
+    names = args.objects.split(",")
+    seeds = 1 if args.quick else args.seeds
+    started, header = time.perf_counter(), _common.machine_description()
+    gripper = isf.load_gripper(GRIPPER)
+    counts: dict[tuple[str, int, int], tuple[int, float]] = {}
+    for name in names:
+        obj, _ = _common.scaled_benchmark_object(name, max_points=MAX_POINTS)
+        for seed in range(seeds):
+            for b in sizes:
+                row = _common.plan_once(gripper, obj, 60, seed, batch_size=b,
+                                        sampler=paper_sampler(), repair_collisions=False)
+                counts[(name, seed, b)] = (row["free"], row["error"])
+            print(f"# {name} seed {seed}: " + ", ".join(
+                f"B={b} {counts[(name, seed, b)][0]:g}" for b in sizes), flush=True)
+    ref = sizes[-1]
+    rows, pairs = [], {b: [] for b in sizes[:-1]}
+    for name in names:
+        cells = [name, f"0-{seeds - 1}"]
+        for b in sizes:
+            cells.append(f"{statistics.fmean(counts[(name, s, b)][0] for s in range(seeds)):.1f}")
+        for b in sizes[:-1]:
+            diff = [counts[(name, s, b)][0] - counts[(name, s, ref)][0] for s in range(seeds)]
+            pairs[b] += diff
+            cells.append(f"{statistics.fmean(diff):+.1f}")
+        for b in sizes:
+            cells.append(_common.fmt(1e3 * statistics.fmean(counts[(name, s, b)][1]
+                                                         for s in range(seeds))))
+        rows.append(cells)
+    total = ["**all pairs**", f"{len(names) * seeds} runs per size"] + [""] * len(sizes)
+    for b in sizes[:-1]:
+        d = pairs[b]
+        se = statistics.stdev(d) / len(d) ** 0.5 if len(d) > 1 else float("nan")
+        total.append(f"**{statistics.fmean(d):+.2f} +- {se:.2f}**")
+    rows.append(total + [""] * len(sizes))
+    table = _common.markdown_table(
+        ["object", "seeds"] + [f"collision-free, B={b}" for b in sizes]
+        + [f"B={b} - B={ref} (mean; all pairs: +- standard error)" for b in sizes[:-1]]
+        + [f"mean fit error (mm), B={b}" for b in sizes], rows)
+    note = (f"Gripper `{GRIPPER}`, 60 samples, regret sampler with random orientations, no "
+            f"repair, objects as in bench/table1.py; seeds 0..{seeds - 1}; reference B={ref}.")
+    _common.finish("bandit_delay: collision-free grasps vs batch size, paired by seed",
+                   ["### Collision-free grasps vs. batch size", note, table], started, header,
+                   args.out)
+
+
+if __name__ == "__main__":
+    main()
