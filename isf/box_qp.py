@@ -42,7 +42,7 @@ def solve_box_qps(H: np.ndarray, c: np.ndarray, lower: np.ndarray, upper: np.nda
     """
     n_problems, n = c.shape
     eye = np.eye(n)
-    x = np.clip(c, lower, upper)
+    x = np.empty_like(c)
     certified = np.zeros(n_problems, dtype=bool)
     at_lower = np.zeros((n_problems, n), dtype=bool)
     at_upper = np.zeros((n_problems, n), dtype=bool)

@@ -192,4 +192,3 @@ class PairMoments:
             Atb -= normal_weight * self._fit_sum(
                 np.einsum("gij,gj->gi", Fn, np.einsum("gij,gj->gi", self.N, p[:, :9]) + self.w))
         return AtA, Atb
-

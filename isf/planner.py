@@ -40,7 +40,7 @@ from .lockstep import LockstepFitter
 from .object_surface import ObjectSurface
 from .result import FitResult
 from .samplers import Outcome, Proposal, Sampler, get_sampler
-from .working_surface import working_spacing, working_surface
+from .working_surface import resolve_spacing, working_surface
 
 __all__ = ["Grasp", "PlanResult", "PlanStats", "plan"]
 
@@ -166,21 +166,6 @@ def _slots(sampler: Sampler, batch_size: int) -> int:
     return batch_size if limit is None else max(1, min(batch_size, int(limit)))
 
 
-def _working_spacing(value: float | str | None, gripper: Gripper) -> float:
-    """The ``working_spacing`` argument of :func:`plan` in metres (0: keep the object)."""
-    from .exceptions import InvalidInputError
-
-    if value is None:
-        return 0.0
-    if isinstance(value, str) and value == "auto":
-        return working_spacing(gripper)
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
-            or not (np.isfinite(value) and value > 0):
-        raise InvalidInputError(f"working_spacing must be 'auto', None or a spacing > 0 in metres, "
-                                f"got {value!r}")
-    return float(value)
-
-
 def plan(
     gripper: Gripper | str | Path,
     obj: ObjectSurface | str | Path | np.ndarray,
@@ -219,7 +204,8 @@ def plan(
         the ranked :class:`PlanResult`.
 
     Raises:
-        InvalidInputError: ``samples`` or ``batch_size`` is not a positive integer, or the
+        InvalidInputError: ``samples`` or ``batch_size`` is not a positive integer,
+            ``working_spacing`` is neither "auto", None nor a spacing > 0, or the
             sampler proposed an invalid pose or joint vector.
         GripperDescriptionError, ObjectLoadError, SamplerNotFound: bad gripper, object or sampler.
     """
@@ -234,7 +220,7 @@ def plan(
     config = FitConfig() if config is None else config
     gripper = gripper if isinstance(gripper, Gripper) else load_gripper(gripper)
     obj = obj if isinstance(obj, ObjectSurface) else load_object(obj)
-    obj = working_surface(obj, _working_spacing(working_spacing, gripper))
+    obj = working_surface(obj, resolve_spacing(working_spacing, gripper))
     sampler = get_sampler(sampler)
     rng = np.random.default_rng(seed)
     sampler.reset(obj, gripper, rng)

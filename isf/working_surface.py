@@ -17,12 +17,13 @@ import logging
 import numpy as np
 from scipy.spatial import cKDTree
 
+from .exceptions import InvalidInputError
 from .gripper import Gripper
 from .mesh_sampling import voxel_representatives
 from .object_surface import ObjectSurface
 from .voxel_grid import voxel_labels
 
-__all__ = ["SPACING_FACTOR", "contact_spacing", "working_spacing", "working_surface"]
+__all__ = ["SPACING_FACTOR", "contact_spacing", "resolve_spacing", "working_spacing", "working_surface"]
 
 logger = logging.getLogger(__name__)
 
@@ -44,6 +45,24 @@ def contact_spacing(gripper: Gripper) -> float:
 def working_spacing(gripper: Gripper) -> float:
     """The finest object spacing worth matching against with ``gripper``, metres."""
     return SPACING_FACTOR * contact_spacing(gripper)
+
+
+def resolve_spacing(value: float | str | None, gripper: Gripper) -> float:
+    """The ``working_spacing`` argument of :func:`isf.plan` in metres: ``"auto"`` gives
+    :func:`working_spacing`, None gives 0 (keep the object), a number > 0 itself.
+
+    Raises:
+        InvalidInputError: any other value.
+    """
+    if value is None:
+        return 0.0
+    if isinstance(value, str) and value == "auto":
+        return working_spacing(gripper)
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+            or not (np.isfinite(value) and value > 0):
+        raise InvalidInputError(f"working_spacing must be 'auto', None or a spacing > 0 in metres, "
+                                f"got {value!r}")
+    return float(value)
 
 
 def working_surface(obj: ObjectSurface, spacing: float) -> ObjectSurface:
