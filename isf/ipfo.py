@@ -17,7 +17,6 @@ from .config import FitConfig
 from .finger_step import FingerStepQP, finger_steps
 from .gripper import Gripper, LinkKinematics
 from .moments import PairMoments
-from .palm_step import palm_motions
 from .se3 import cross
 from .segments import Segments
 
@@ -196,8 +195,7 @@ def ipfo(pairs: PairBatch, T: np.ndarray, q: np.ndarray, qps: list[FingerStepQP]
     errors: list[list[float]] = [[] for _ in range(n_fits)]
     active = np.ones(n_fits, dtype=bool)
     for _ in range(config.max_ipfo_iterations):
-        H, g, centre = moments.palm_system(T, links, alpha)
-        T_new = palm_motions(H, g, centre, config.max_rotation_step) @ T
+        T_new = moments.palm_update(T, links, alpha, config.max_rotation_step)
         q_new, links_new = q, links
         if move_fingers:
             AtA, Atb = moments.finger_system(T_new, links, alpha)

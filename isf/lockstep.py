@@ -54,6 +54,7 @@ class _Fit:
     start: np.ndarray = field(default=None, repr=False)  # their positions when the level began
     current: np.ndarray = field(default=None, repr=False)
     current_normals: np.ndarray = field(default=None, repr=False)
+    nearest: np.ndarray | None = field(default=None, repr=False)  # last nearest object points
     links: LinkKinematics = field(default=None, repr=False)  # kinematics at q, arrays (1, L, ...)
     max_iterations: int = 0
     eps: float = 0.0
@@ -123,6 +124,7 @@ class LockstepFitter:
         fit.eps = 2**level * self.config.tolerance
         (fit.current,), (fit.current_normals,) = self._level_points([fit], fit.T[None], links)
         fit.start = fit.current
+        fit.nearest = None
         fit.iteration, fit.displacement, fit.eta = 0, np.inf, 0.0
 
 
@@ -134,8 +136,14 @@ class LockstepFitter:
         counts = np.array([len(f.index) for f in fits])
         queries = Segments.from_counts(counts)
         point_index = np.concatenate([f.index for f in fits])
-        pairs = _match(self.gripper, self.obj, config, np.concatenate([f.current for f in fits]),
-                       np.concatenate([f.current_normals for f in fits]), queries, point_index)
+        points = np.concatenate([f.current for f in fits])
+        # the last iteration's answers bound the search (exact either way)
+        guess = np.concatenate([np.full(len(f.index), -1) if f.nearest is None else f.nearest for f in fits])
+        nearest = self.obj.nearest(points, guess)
+        for f, s in zip(fits, queries.slices()):
+            f.nearest = nearest[1][s]
+        pairs = _match(self.gripper, self.obj, config, points, np.concatenate([f.current_normals for f in fits]),
+                       queries, point_index, nearest)
         owner = queries.ids[pairs.source]
         n_pairs = np.bincount(owner, minlength=len(fits))
         fitted = n_pairs >= config.min_pairs

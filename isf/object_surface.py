@@ -8,14 +8,15 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.spatial import cKDTree
+
+from .nearest import NearestPoints
 
 __all__ = ["ObjectSurface"]
 
 
 @dataclass(eq=False)
 class ObjectSurface:
-    """Surface samples of a workpiece, with one KD-tree built once.
+    """Surface samples of a workpiece, with a nearest-point search built on first use.
 
     Attributes:
         points: surface points in the object frame, shape (N, 3), metres.
@@ -33,7 +34,7 @@ class ObjectSurface:
     name: str = "object"
     mesh_vertices: np.ndarray | None = None
     mesh_faces: np.ndarray | None = None
-    _tree: cKDTree = field(init=False, repr=False)
+    _search: NearestPoints | None = field(init=False, repr=False, default=None)
 
     def __post_init__(self) -> None:
         self.points = np.ascontiguousarray(self.points, dtype=np.float64)
@@ -41,7 +42,6 @@ class ObjectSurface:
         if self.mesh_faces is not None:
             self.mesh_vertices = np.asarray(self.mesh_vertices, dtype=np.float64)
             self.mesh_faces = np.asarray(self.mesh_faces, dtype=np.int64)
-        self._tree = cKDTree(self.points)
 
     @property
     def n_points(self) -> int:
@@ -58,14 +58,18 @@ class ObjectSurface:
         """True when the surface came from a triangle mesh (not a point cloud)."""
         return self.mesh_faces is not None
 
-    def nearest(self, query: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Nearest surface point of each query point.
+    def nearest(self, query: np.ndarray, guess: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Nearest surface point of each query point (exact; see :mod:`isf.nearest`).
 
         Args:
             query: points in the object frame, shape (M, 3), metres.
+            guess: optional index per query (M,) of a point likely to be near (-1 for none),
+                e.g. the previous iteration's answer; it only speeds the search.
 
         Returns:
-            (distances (M,) in metres, indices (M,) into :attr:`points`).
+            (distances (M,) in metres, indices (M,) into :attr:`points`; the lowest index
+            among equally near points).
         """
-        dist, idx = self._tree.query(query, k=1, workers=1)
-        return dist, idx
+        if self._search is None:
+            self._search = NearestPoints(self.points)
+        return self._search.query(query, guess)

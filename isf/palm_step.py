@@ -8,12 +8,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from .se3 import cross, exp_so3_many
+from . import moment_kernels as kernels
+from .se3 import cross
 from .segments import Segments
 
 __all__ = ["palm_motions", "palm_step", "palm_steps"]
-
-_EYE6 = np.eye(6)
 
 
 def palm_steps(
@@ -68,20 +67,11 @@ def palm_motions(H: np.ndarray, g: np.ndarray, centre: np.ndarray, max_rotation:
     ``x = [r, u]`` about the centroids ``centre`` (B, 3); returns ``T_delta`` (B, 4, 4).
 
     A rotation larger than ``max_rotation`` (radians) is scaled down, with its translation.
+    A ridge of ``1e-12 trace(H)`` keeps the directions the surfaces leave free (a pad sliding
+    on a plane) at zero motion instead of letting round-off move them.
     """
-    # A tiny ridge keeps directions the surfaces leave free (a pad sliding on a
-    # plane) at zero motion instead of letting round-off move them.
-    ridge = 1e-12 * np.maximum(np.trace(H, axis1=1, axis2=2), 1e-300)
-    x = np.linalg.solve(H + ridge[:, None, None] * _EYE6, g[:, :, None])[:, :, 0]
-    r = x[:, :3]
-    angle = np.sqrt(np.add.reduce(r * r, axis=1))  # np.linalg.norm(r, axis=1), without its overhead
-    x *= np.minimum(1.0, max_rotation / np.maximum(angle, 1e-300))[:, None]
-    R = exp_so3_many(x[:, :3])
-    T = np.zeros((len(x), 4, 4))
-    T[:, :3, :3] = R
-    T[:, :3, 3] = centre + x[:, 3:] - np.einsum("bij,bj->bi", R, centre)
-    T[:, 3, 3] = 1.0
-    return T
+    as_float = (np.ascontiguousarray(a, dtype=float) for a in (H, g, centre))
+    return kernels.palm_motions(*as_float, float(max_rotation))
 
 
 def palm_step(

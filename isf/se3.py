@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["cross", "exp_so3", "exp_so3_many", "make_transform", "rotation_angle", "skew"]
+__all__ = ["cross", "exp_so3", "make_transform", "rotation_angle", "skew"]
 
 
 def skew(v: np.ndarray) -> np.ndarray:
@@ -20,23 +20,6 @@ def exp_so3(r: np.ndarray) -> np.ndarray:
     if theta < 1e-9:
         return np.eye(3) + K + 0.5 * (K @ K)
     return np.eye(3) + (np.sin(theta) / theta) * K + ((1.0 - np.cos(theta)) / theta**2) * (K @ K)
-
-
-_EYE3 = np.eye(3)
-_SKEW = np.array([skew(e) for e in _EYE3]).reshape(3, 9)
-"""``r @ _SKEW`` is ``vec([r]x)`` for rows r (B, 3), exactly (one nonzero term per entry)."""
-
-
-def exp_so3_many(r: np.ndarray) -> np.ndarray:
-    """Rotation matrices of axis-angle vectors ``r`` (B, 3), radians, (B, 3, 3) (Rodrigues)."""
-    theta2 = np.einsum("bi,bi->b", r, r)
-    theta = np.sqrt(theta2)
-    K = (r @ _SKEW).reshape(-1, 3, 3)
-    small = theta < 1e-9
-    safe = np.where(small, 1.0, theta)
-    a = np.where(small, 1.0, np.sin(safe) / safe)
-    b = np.where(small, 0.5, (1.0 - np.cos(safe)) / safe**2)
-    return _EYE3 + a[:, None, None] * K + b[:, None, None] * (K @ K)
 
 
 def rotation_angle(R: np.ndarray) -> float:

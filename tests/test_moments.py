@@ -6,6 +6,7 @@ import pytest
 import isf
 from _builders import random_rotation
 from isf.ipfo import PairBatch
+from isf.moment_kernels import solve_small
 from isf.moments import PairMoments
 from isf.palm_step import palm_motions, palm_steps
 from isf.se3 import make_transform
@@ -56,3 +57,22 @@ def test_finger_system_equals_pairwise_normal_equations(case):
     AtA_m, Atb_m = moments.finger_system(T, links, 0.01)
     np.testing.assert_allclose(AtA_m, AtA, rtol=1e-9, atol=1e-14)
     np.testing.assert_allclose(Atb_m, Atb, rtol=1e-9, atol=1e-14)
+
+
+def test_palm_update_applies_the_palm_step(case):
+    pairs, moments, T, links = case
+    H, g, centre = moments.palm_system(T, links, 0.01)
+    expected = palm_motions(H, g, centre, 0.2) @ T
+    np.testing.assert_allclose(moments.palm_update(T, links, 0.01, 0.2), expected, atol=1e-12)
+
+
+@pytest.mark.parametrize("n", [1, 2, 6, 16])
+def test_small_solve_matches_lapack(n):
+    rng = np.random.default_rng(n)
+    H = rng.normal(size=(n, n))
+    if n > 1:
+        H[0, 0] = 0.0  # needs a row exchange
+    rhs = rng.normal(size=n)
+    x = np.empty(n)
+    solve_small(H, rhs, x)
+    np.testing.assert_allclose(x, np.linalg.solve(H, rhs), rtol=1e-10, atol=1e-12)
