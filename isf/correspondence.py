@@ -9,6 +9,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+from numba import njit
 
 from .object_surface import ObjectSurface
 from .segments import Segments
@@ -71,30 +72,51 @@ def match_many(
     """
     dist, target = obj.nearest(points) if nearest is None else nearest
     groups = segments if outlier_groups is None else outlier_groups
-    medians = _group_medians(dist, groups)
-    threshold = np.maximum(outlier_factor * medians, outlier_floor)
-    keep = dist <= threshold[groups.ids]
     if normals is not None and max_normal_angle < np.pi:
-        keep &= np.einsum("ij,ij->i", normals, obj.normals[target]) <= -np.cos(max_normal_angle)
+        compatible = np.einsum("ij,ij->i", normals, obj.normals[target]) <= -np.cos(max_normal_angle)
+    else:
+        compatible = np.ones(len(dist), dtype=bool)
+    keep = _filter_pairs(dist, target, groups.starts, segments.starts, float(outlier_factor),
+                         float(outlier_floor), compatible, bool(reject_duplicates))
     source = np.flatnonzero(keep)
-    target, dist = target[source], dist[source]
-    if reject_duplicates and len(source):
-        fit = segments.ids[source]
-        order = np.lexsort((dist, target, fit))
-        first = np.ones(len(order), dtype=bool)
-        first[1:] = (target[order[1:]] != target[order[:-1]]) | (fit[order[1:]] != fit[order[:-1]])
-        keep = np.sort(order[first])
-        source, target, dist = source[keep], target[keep], dist[keep]
-    return Correspondences(source, target, dist)
+    return Correspondences(source, target[source], dist[source])
 
 
-def _group_medians(values: np.ndarray, groups: Segments) -> np.ndarray:
-    """Median of ``values`` (M,) within each group, (G,) (one sort for all groups)."""
-    order = np.lexsort((values, groups.ids))
-    ranked = values[order]
-    lower = groups.starts + (groups.counts - 1) // 2
-    upper = groups.starts + groups.counts // 2
-    return 0.5 * (ranked[lower] + ranked[upper])
+@njit(cache=True, error_model="numpy")
+def _filter_pairs(dist, target, group_starts, fit_starts, outlier_factor, outlier_floor, compatible,
+                  reject_duplicates):
+    """The pairs :func:`match_many` keeps, a mask (M,): within the outlier threshold of their
+    group (``group_starts``: first row of each group), ``compatible``, and, with
+    ``reject_duplicates``, the nearest of the pairs of one fit (``fit_starts``) sharing a target
+    (the first such pair when equally near)."""
+    m = len(dist)
+    keep = np.empty(m, dtype=np.bool_)
+    for g in range(len(group_starts)):
+        a = group_starts[g]
+        b = group_starts[g + 1] if g + 1 < len(group_starts) else m
+        ranked = np.sort(dist[a:b])
+        median = 0.5 * (ranked[(b - a - 1) // 2] + ranked[(b - a) // 2])
+        threshold = max(outlier_factor * median, outlier_floor)
+        for i in range(a, b):
+            keep[i] = dist[i] <= threshold and compatible[i]
+    if not reject_duplicates:
+        return keep
+    for f in range(len(fit_starts)):
+        a = fit_starts[f]
+        b = fit_starts[f + 1] if f + 1 < len(fit_starts) else m
+        kept = np.flatnonzero(keep[a:b]) + a
+        kept = kept[np.argsort(target[kept], kind="mergesort")]  # stable: by row within a target
+        run = 0
+        while run < len(kept):
+            end, best = run + 1, kept[run]
+            while end < len(kept) and target[kept[end]] == target[kept[run]]:
+                if dist[kept[end]] < dist[best]:
+                    best = kept[end]
+                end += 1
+            for i in range(run, end):
+                keep[kept[i]] = kept[i] == best
+            run = end
+    return keep
 
 
 def match(

@@ -16,6 +16,7 @@ import numpy as np
 from .config import FitConfig
 from .finger_step import FingerStepQP, finger_steps
 from .gripper import Gripper, LinkKinematics
+from .moment_kernels import points_in_object
 from .moments import PairMoments
 from .se3 import cross
 from .segments import Segments
@@ -219,6 +220,7 @@ def ipfo(pairs: PairBatch, T: np.ndarray, q: np.ndarray, qps: list[FingerStepQP]
         active = accept & (decrease > threshold)
         if not active.any():
             break
-    d = pairs.residuals(T, *pairs.evaluate(links)[:2])[0]
-    mean_distance = seg.mean(np.abs(d))
+    points, _ = points_in_object(T, links.rotations, links.positions, seg.ids, pairs.link,
+                                 pairs.points_link, pairs.normals_link)
+    mean_distance = seg.mean(np.abs(np.einsum("kj,kj->k", points - pairs.targets, pairs.target_normals)))
     return IPFOResult(T, q, error, mean_distance, [tuple(e) for e in errors], links)

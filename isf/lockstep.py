@@ -33,6 +33,7 @@ from .exceptions import InvalidInputError
 from .finger_step import FingerStepQP
 from .gripper import Gripper, LinkKinematics
 from .ipfo import PairBatch, ipfo
+from .moment_kernels import points_in_object
 from .object_surface import ObjectSurface
 from .result import FitResult, FitStatus, IterationRecord
 from .segments import Segments
@@ -199,13 +200,8 @@ class LockstepFitter:
         g = self.gripper
         index = np.concatenate([f.index for f in fits])
         seg = Segments.from_counts(np.array([len(f.index) for f in fits]))
-        # Object-frame pose of every (fit, contact link), then one gather per point.
-        A = T[:, None, :3, :3] @ links.rotations
-        a = np.einsum("bij,blj->bli", T[:, :3, :3], links.positions) + T[:, None, :3, 3]
-        fit_of, link = seg.ids, g.point_link[index]
-        A_k = A[fit_of, link]
-        points = np.einsum("kij,kj->ki", A_k, g.points_link[index]) + a[fit_of, link]
-        normals = np.einsum("kij,kj->ki", A_k, g.normals_link[index])
+        points, normals = points_in_object(T, links.rotations, links.positions, seg.ids, g.point_link[index],
+                                           g.points_link[index], g.normals_link[index])
         slices = seg.slices()
         return [points[s] for s in slices], [normals[s] for s in slices]
 

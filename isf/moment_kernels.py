@@ -13,7 +13,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["fit_errors", "finger_systems", "group_moments", "palm_motion", "palm_motions", "palm_systems", "palm_updates", "solve_small"]
+__all__ = ["fit_errors", "finger_systems", "group_moments", "palm_motion", "palm_motions", "palm_systems",
+           "palm_updates", "points_in_object", "solve_small"]
 
 
 @njit(cache=True, error_model="numpy")
@@ -391,3 +392,32 @@ def finger_systems(T, rotations, positions, J_linear, J_angular, origin, M, N, v
                         acc += F[m, j] * rn[j]
                     Atb[b, m] -= alpha * alpha * acc
     return AtA, Atb
+
+
+@njit(cache=True, error_model="numpy")
+def points_in_object(T, rotations, positions, fit, link, points_link, normals_link):
+    """Gripper points and normals moved into the object frame: point ``i`` (on contact link
+    ``link[i]`` of fit ``fit[i]``) at ``A_g x_i + a_g``, its normal ``A_g nu_i``.
+
+    Args:
+        T: palm poses, (B, 4, 4).
+        rotations, positions: contact-link poses, gripper frame, (B, L, 3, 3), (B, L, 3).
+        fit, link: (K,) integers.
+        points_link, normals_link: link-frame points (metres) and normals, (K, 3).
+
+    Returns:
+        points (K, 3), metres, and normals (K, 3), object frame.
+    """
+    points, normals = np.empty((len(fit), 3)), np.empty((len(fit), 3))
+    A, a, no_origin = np.empty((3, 3)), np.empty(3), np.zeros(3)
+    last = (-1, -1)
+    for k in range(len(fit)):
+        if (fit[k], link[k]) != last:
+            last = (fit[k], link[k])
+            _group_pose(T[fit[k]], rotations[fit[k], link[k]], positions[fit[k], link[k]], no_origin, A, a)
+        for i in range(3):
+            points[k, i] = A[i, 0] * points_link[k, 0] + A[i, 1] * points_link[k, 1] \
+                + A[i, 2] * points_link[k, 2] + a[i]
+            normals[k, i] = A[i, 0] * normals_link[k, 0] + A[i, 1] * normals_link[k, 1] \
+                + A[i, 2] * normals_link[k, 2]
+    return points, normals

@@ -38,13 +38,39 @@ def test_duplicates_are_rejected_within_a_fit_not_across_fits():
     assert pairs.source.tolist() == [0, 2]  # the closer of each fit's two
 
 
-def test_group_medians_equal_numpy_medians():
-    from isf.correspondence import _group_medians
+def _reference_filter(dist, target, compatible, groups, fits, factor, floor):
+    """The filters of match_many written plainly: np.median per group, then per fit and
+    target the nearest pair (the first of equally near ones)."""
+    keep = []
+    for s in groups.slices():
+        threshold = max(factor * np.median(dist[s]), floor)
+        keep += [i for i in range(s.start, s.stop) if dist[i] <= threshold and compatible[i]]
+    best = {}
+    for i in keep:
+        key = (fits.ids[i], target[i])
+        if key not in best or dist[i] < dist[best[key]]:
+            best[key] = i
+    return sorted(best.values())
 
+
+def test_filters_equal_a_plain_reference():
+    plane = _plane(n=9)  # 81 object points: many contact points share a target
     rng = np.random.default_rng(0)
-    for _ in range(50):
-        counts = rng.integers(1, 40, rng.integers(1, 10))
-        groups = Segments.from_counts(counts)
-        values = rng.random(counts.sum())
-        expected = [np.median(values[s]) for s in groups.slices()]
-        np.testing.assert_array_equal(_group_medians(values, groups), expected)
+    for trial in range(30):
+        counts = rng.integers(1, 30, rng.integers(1, 6))
+        fits = Segments.from_counts(counts)
+        points = np.c_[rng.uniform(-0.025, 0.025, (counts.sum(), 2)), rng.exponential(0.004, counts.sum())]
+        points = np.round(points, 3)
+        copies = rng.integers(0, len(points), len(points) // 3)
+        points[copies] = points[np.maximum(copies - 1, 0)]  # exact ties (same fit, mostly)
+        normals = rng.normal(size=points.shape)
+        normals /= np.linalg.norm(normals, axis=1)[:, None]
+        split = rng.integers(0, 2, counts.sum())  # two surfaces per fit
+        groups = Segments.runs(split, fits.ids)
+        dist, target = plane.nearest(points)
+        compatible = normals @ [0.0, 0.0, 1.0] <= -np.cos(2.0)
+        expected = _reference_filter(dist, target, compatible, groups, fits, 2.0, 0.002)
+        pairs = match_many(plane, points, fits, outlier_factor=2.0, outlier_floor=0.002, reject_duplicates=True,
+                           normals=normals, max_normal_angle=2.0, outlier_groups=groups)
+        assert pairs.source.tolist() == expected, trial
+        np.testing.assert_array_equal(pairs.target, target[expected])
