@@ -15,6 +15,9 @@ certified; the caller solves the uncertified ones another way (OSQP, in
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
+
+from .moment_kernels import solve_small
 
 __all__ = ["solve_box_qps"]
 
@@ -29,6 +32,9 @@ def solve_box_qps(H: np.ndarray, c: np.ndarray, lower: np.ndarray, upper: np.nda
                   max_rounds: int = MAX_ROUNDS) -> tuple[np.ndarray, np.ndarray]:
     """Solve B box-constrained QPs ``min 1/2 x^T H x - c^T x``, ``lower <= x <= upper``.
 
+    The first round is the unconstrained minimiser: a problem whose minimiser lies within
+    its bounds is certified after one linear solve.
+
     Args:
         H: symmetric positive definite matrices, (B, n, n).
         c: linear terms, (B, n).
@@ -40,31 +46,46 @@ def solve_box_qps(H: np.ndarray, c: np.ndarray, lower: np.ndarray, upper: np.nda
         the KKT conditions (it is then the exact solution); elsewhere ``x`` is the last
         guess clipped into the bounds.
     """
+    as_float = (np.ascontiguousarray(a, dtype=float) for a in (H, c, lower, upper))
+    return _solve_box_qps(*as_float, int(max_rounds), _KKT_TOLERANCE)
+
+
+@njit(cache=True, error_model="numpy")
+def _solve_box_qps(H, c, lower, upper, max_rounds, tolerance):
+    """:func:`solve_box_qps`, compiled: each problem on its own."""
     n_problems, n = c.shape
-    eye = np.eye(n)
-    x = np.empty_like(c)
-    certified = np.zeros(n_problems, dtype=bool)
-    at_lower = np.zeros((n_problems, n), dtype=bool)
-    at_upper = np.zeros((n_problems, n), dtype=bool)
-    open_ = np.arange(n_problems)  # problems not certified yet
-    for _ in range(max_rounds):
-        Hk, ck, lo, hi = H[open_], c[open_], lower[open_], upper[open_]
-        low, high = at_lower[open_], at_upper[open_]
-        fixed = low | high
-        # rows of fixed coordinates become x_i = bound_i; the free rows keep H x = c
-        M = np.where(fixed[:, :, None], eye, Hk)
-        xk = np.linalg.solve(M, np.where(low, lo, np.where(high, hi, ck))[:, :, None])[:, :, 0]
-        r = np.einsum("bij,bj->bi", Hk, xk) - ck
-        scale = _KKT_TOLERANCE * (np.einsum("bij,bj->bi", np.abs(Hk), np.abs(xk)) + np.abs(ck))
-        room = _KKT_TOLERANCE * (hi - lo)
-        below, above = ~fixed & (xk < lo - room), ~fixed & (xk > hi + room)
-        wrong_low, wrong_high = low & (r < -scale), high & (r > scale)
-        done = ~np.any(below | above | wrong_low | wrong_high, axis=1)
-        x[open_] = xk
-        certified[open_[done]] = True
-        at_lower[open_] = (low & ~wrong_low) | below
-        at_upper[open_] = (high & ~wrong_high) | above
-        open_ = open_[~done]
-        if not len(open_):
-            break
-    return np.clip(x, lower, upper), certified
+    x, certified = np.empty((n_problems, n)), np.zeros(n_problems, dtype=np.bool_)
+    M, rhs, guess = np.empty((n, n)), np.empty(n), np.empty(n)
+    low, high = np.zeros(n, dtype=np.bool_), np.zeros(n, dtype=np.bool_)
+    next_low, next_high = np.zeros(n, dtype=np.bool_), np.zeros(n, dtype=np.bool_)
+    for b in range(n_problems):
+        low[:], high[:] = False, False
+        for _ in range(max_rounds):
+            # rows of fixed coordinates become x_i = bound_i; the free rows keep H x = c
+            for i in range(n):
+                fixed = low[i] or high[i]
+                for j in range(n):
+                    M[i, j] = (1.0 if i == j else 0.0) if fixed else H[b, i, j]
+                rhs[i] = lower[b, i] if low[i] else (upper[b, i] if high[i] else c[b, i])
+            solve_small(M, rhs, guess)
+            done = True
+            for i in range(n):
+                r, scale = -c[b, i], abs(c[b, i])
+                for j in range(n):
+                    r += H[b, i, j] * guess[j]
+                    scale += abs(H[b, i, j]) * abs(guess[j])
+                scale *= tolerance
+                room = tolerance * (upper[b, i] - lower[b, i])
+                free = not (low[i] or high[i])
+                below, above = free and guess[i] < lower[b, i] - room, free and guess[i] > upper[b, i] + room
+                wrong_low, wrong_high = low[i] and r < -scale, high[i] and r > scale
+                done = done and not (below or above or wrong_low or wrong_high)
+                next_low[i] = (low[i] and not wrong_low) or below
+                next_high[i] = (high[i] and not wrong_high) or above
+            for i in range(n):
+                x[b, i] = min(max(guess[i], lower[b, i]), upper[b, i])
+            if done:
+                certified[b] = True
+                break
+            low[:], high[:] = next_low, next_high
+    return x, certified

@@ -120,12 +120,12 @@ def finger_steps(
     """Solve the finger QPs of many fits at once.
 
     The QP is strictly convex, so when the minimiser of its objective lies inside the
-    bounds it *is* the QP's solution: that is computed for all fits with one batched
-    linear solve. With one joint the bounded solution is that minimiser clipped (the
-    paper's eq. 12-13). Multi-joint fits whose minimiser leaves the bounds get an
-    active-set solution (:func:`isf.box_qp.solve_box_qps`), kept where the KKT conditions
-    certify it; only the rest go to their OSQP problem (``qps[b]``, set up once per fit,
-    updated and warm-started).
+    bounds it *is* the QP's solution. With one joint the bounded solution is that minimiser
+    clipped (the paper's eq. 12-13), for all fits at once. With more joints every fit goes
+    to the compiled active set (:func:`isf.box_qp.solve_box_qps`), whose first round is
+    that minimiser; its answer is kept where the KKT conditions certify it, and only the
+    rest go to their OSQP problem (``qps[b]``, set up once per fit, updated and
+    warm-started).
 
     Args:
         AtA: normal matrices ``A^T A``, shape (B, n, n).
@@ -138,19 +138,14 @@ def finger_steps(
         ``dq`` (B, n) and a mask (B,) of fits whose QP OSQP could not solve (their ``dq`` is 0).
     """
     n = AtA.shape[1]
-    eye = np.eye(n)
-    H = AtA + damping * eye
+    H = AtA + damping * np.eye(n)
     # A relative ridge only for singular systems; it cannot change a well-posed answer.
     ridge = 1e-14 * np.maximum(np.trace(H, axis1=1, axis2=2), 1e-300)
     failed = np.zeros(len(H), dtype=bool)
     if n == 1:  # a 1x1 solve is one division (the same number LAPACK returns)
         return np.clip(Atb / (H[:, :, 0] + ridge[:, None]), lower, upper), failed
-    dq = np.linalg.solve(H + ridge[:, None, None] * eye, Atb[:, :, None])[:, :, 0]
-    outside = np.flatnonzero(np.any((dq < lower) | (dq > upper), axis=1))
-    if len(outside):
-        exact, certified = solve_box_qps(H[outside], Atb[outside], lower[outside], upper[outside])
-        dq[outside[certified]] = exact[certified]
-        outside = outside[~certified]
+    dq, certified = solve_box_qps(H + ridge[:, None, None] * np.eye(n), Atb, lower, upper)
+    outside = np.flatnonzero(~certified)
     for b in outside.tolist():
         try:
             dq[b] = qps[b].solve_normal(AtA[b], Atb[b], lower[b], upper[b])
