@@ -152,7 +152,7 @@ class NearestPoints:
                 distance.
 
         Returns:
-            distances (M,) and indices (M,) into :attr:`points`; among equally near points the
+            distances (M,) and indices (M,) into ``points``; among equally near points the
             lowest index.
         """
         queries = np.ascontiguousarray(queries, dtype=np.float64).reshape(-1, 3)
