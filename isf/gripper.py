@@ -24,6 +24,8 @@ from typing import NamedTuple
 import numpy as np
 import pinocchio as pin
 
+from isf.chain import KinematicChain
+
 __all__ = ["ContactKinematics", "ContactSurface", "Gripper", "LinkGeometry", "LinkKinematics"]
 
 
@@ -133,6 +135,8 @@ class Gripper:
         if self.model.nq != self.model.nv:
             raise ValueError("isf supports revolute and prismatic joints only (nq must equal nv)")
         self._data = self.model.createData()
+        # Compiled kinematics for frame_kinematics_many; None keeps the Pinocchio loop.
+        self._chain = KinematicChain.from_model(self.model)
         self.q_initial = np.asarray(self.q_initial, dtype=float).copy()
         names, idx, rotates = [], [], []
         for jid in range(1, self.model.njoints):
@@ -216,10 +220,15 @@ class Gripper:
 
     def frame_kinematics_many(self, Q: np.ndarray, frames: np.ndarray) -> LinkKinematics:
         """Poses and Jacobians of any Pinocchio frames (ids (F,)) at B joint vectors ``Q``
-        (B, n_joints), gripper frame: arrays (B, F, ...) as in :class:`LinkKinematics`."""
+        (B, n_joints), gripper frame: arrays (B, F, ...) as in :class:`LinkKinematics`.
+
+        One compiled call (:mod:`isf.chain`) when the model's joints allow it, else a loop
+        of Pinocchio calls; both give Pinocchio's LOCAL_WORLD_ALIGNED frame Jacobians."""
         model, data = self.model, self._data
         Q = np.asarray(Q, dtype=float)
         Q = Q.reshape(len(Q) if Q.ndim == 2 else 1, model.nq)  # (-1, 0) cannot be inferred
+        if self._chain is not None:
+            return LinkKinematics(*self._chain.frame_kinematics(Q, frames))
         frames = np.asarray(frames, dtype=int).tolist()
         H = np.empty((len(Q), len(frames), 4, 4))
         J = np.empty((len(Q), len(frames), 6, model.nv))
@@ -232,7 +241,8 @@ class Gripper:
                 if model.nv:  # pin 4.1's getFrameJacobian crashes on a model without joints
                     J_b[k] = pin.getFrameJacobian(model, data, fid, world_aligned).reshape(6, -1)
         R, p = np.ascontiguousarray(H[:, :, :3, :3]), np.ascontiguousarray(H[:, :, :3, 3])
-        return LinkKinematics(R, p, J[:, :, :3], J[:, :, 3:])
+        J_linear, J_angular = np.ascontiguousarray(J[:, :, :3]), np.ascontiguousarray(J[:, :, 3:])
+        return LinkKinematics(R, p, J_linear, J_angular)
 
     def contact_kinematics(self, q: np.ndarray, mask: np.ndarray | None = None) -> ContactKinematics:
         """Contact points, normals and their Jacobians at ``q``, gripper frame.
