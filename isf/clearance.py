@@ -356,10 +356,22 @@ class ClearanceRepair:
         last = np.inf  # contact residual of the previous step
         best = ((np.inf, np.inf), T, q, np.inf)
         steps = 0
+        previous = None  # (state, step, centre, deepest violation) before the last step
         for steps in range(cfg.iterations + 1):
             R, p, J = self._frame_jacobians(q, self._frames)
             rows = self._violations(T, R, p)
-            depth = float(max(0.0, rows.violation.max())) if len(rows.violation) else 0.0
+            worst = float(rows.violation.max()) if len(rows.violation) else -np.inf
+            if previous is not None and previous[3] > cfg.tolerance and -np.inf < worst < 0.0:
+                # the exact step overshot the floor (a turning link rises faster than its
+                # linearisation): try the fraction of it that brings the deepest row to zero
+                (T0, q0), x0, centre0, worst0 = previous
+                T1, q1 = self._apply(T0, q0, worst0 / (worst0 - worst) * x0, centre0)
+                R1, p1, J1 = self._frame_jacobians(q1, self._frames)
+                rows1 = self._violations(T1, R1, p1)
+                if len(rows1.violation) and rows1.violation.max() <= cfg.tolerance:
+                    T, q, R, p, J, rows = T1, q1, R1, p1, J1, rows1
+                    worst = float(rows.violation.max())
+            depth = max(0.0, worst)
             before = depth if before is None else before
             if contacts == "hold" and held is None:  # the held points: those touching at the start
                 held = self._contact_rows(T, q)[3]
@@ -386,6 +398,7 @@ class ClearanceRepair:
                             q)
             if x is None:
                 break
+            previous = ((T, q), x, centre, worst)
             T, q = self._apply(T, q, x, centre)
         return RepairResult(best[1], best[2], float(before or 0.0), float(best[3]), steps)
 
