@@ -36,6 +36,9 @@ Pinocchio's frame Jacobian of its link, gripper frame).
   remove all penetration at once.
 * Joint limits are hard bounds on ``q + dq``; every step is also held in a trust region.
 
+A step that overshoots (the deepest row ends above its floor although it was violated before,
+since a turning link rises faster than its linearisation) is shortened to the secant fraction that
+brings that row to zero, when the shorter step is within ``tolerance``.
 The best state visited is returned: least penetration first, then the smallest contact residual.
 Units inside the QP are millimetres. Each QP is small and dense (tens of variables, a hundred or so
 rows) and is solved exactly by :func:`isf.dense_qp.solve_dense_qp`, with OSQP as the fallback.

@@ -43,7 +43,7 @@ class DenseQPResult(NamedTuple):
 
     Attributes:
         x: the solution, (n,); the last iterate unless ``status == "solved"`` (NaN when
-            ``"not_convex"``).
+            ``"not_convex"`` or when a row's bounds cross, ``l_i > u_i``).
         y: multipliers of the rows, (m,), in OSQP's sign convention: ``H x + c + A^T y = 0``,
             ``y_i < 0`` at a lower bound, ``y_i > 0`` at an upper bound, 0 for inactive rows.
         status: ``"solved"``, ``"infeasible"`` (no ``x`` meets the rows), ``"max_iter"``
