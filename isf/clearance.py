@@ -36,8 +36,12 @@ Pinocchio's frame Jacobian of its link, gripper frame).
   remove all penetration at once.
 * Joint limits are hard bounds on ``q + dq``; every step is also held in a trust region.
 
+A step that overshoots (the deepest row ends above its floor although it was violated before,
+since a turning link rises faster than its linearisation) is shortened to the secant fraction that
+brings that row to zero, when the shorter step is within ``tolerance``.
 The best state visited is returned: least penetration first, then the smallest contact residual.
-Units inside the QP are millimetres (OSQP's absolute tolerances then mean micrometres).
+Units inside the QP are millimetres. Each QP is small and dense (tens of variables, a hundred or so
+rows) and is solved exactly by :func:`isf.dense_qp.solve_dense_qp`, with OSQP as the fallback.
 """
 
 from __future__ import annotations
@@ -57,6 +61,7 @@ from .collision import Plane
 from .collision_surface import closed_mesh
 from .config import FitConfig
 from .correspondence import match
+from .dense_qp import solve_dense_qp
 from .exceptions import ConfigError, GripperDescriptionError
 from .gripper import Gripper
 from .lockstep import score_fit
@@ -72,8 +77,9 @@ _MM = 1000.0  # QP length unit: millimetres per metre
 _NEIGHBOURS = 6  # tangent planes tried per gripper point (as in isf.collision)
 _CONVEX_REACH = 0.003  # object points this close to a convex element (beyond its floor) get rows, m
 _OUTLIER_FACTOR = 3.0  # pull mode: pairs farther than this times the median distance are dropped
-_MAX_OBJECT_SAMPLES = 40000
-_MAX_PLANES = 128  # face planes kept per convex element  # dense resampling of a mesh object
+_MAX_OBJECT_SAMPLES = 40000  # dense resampling of a mesh object
+_MAX_PLANES = 128  # face planes kept per convex element
+_COARSE_PLANES = 16  # of them, the first (most spread-out) ones tried before all
 _NO_CONTACT = (np.empty((0, 3)), np.empty((0, 3)), np.empty((0, 3)), np.empty(0, dtype=int))
 
 
@@ -198,6 +204,11 @@ class _ConvexElement:
         # _MAX_PLANES spread-out normals (farthest-point order) errs on the safe side and keeps
         # a finely tessellated sphere cheap (1280 faces -> 128 planes: ~0.2 mm larger at 12 mm).
         self.planes = planes[_spread(n, _MAX_PLANES)]
+        # the same as contiguous (3, P) normals and (P,) offsets (fast products), all and coarse
+        self.normals_t = np.ascontiguousarray(self.planes[:, :3].T)
+        self.offsets = np.ascontiguousarray(self.planes[:, 3])
+        self.coarse_t = np.ascontiguousarray(self.normals_t[:, :_COARSE_PLANES])
+        self.coarse_offsets = self.offsets[:_COARSE_PLANES].copy()
         self.centre = mesh.vertices.mean(axis=0)
         self.radius = float(np.linalg.norm(mesh.vertices - self.centre, axis=1).max())
 
@@ -348,10 +359,22 @@ class ClearanceRepair:
         last = np.inf  # contact residual of the previous step
         best = ((np.inf, np.inf), T, q, np.inf)
         steps = 0
+        previous = None  # (state, step, centre, deepest violation) before the last step
         for steps in range(cfg.iterations + 1):
             R, p, J = self._frame_jacobians(q, self._frames)
             rows = self._violations(T, R, p)
-            depth = float(max(0.0, rows.violation.max())) if len(rows.violation) else 0.0
+            worst = float(rows.violation.max()) if len(rows.violation) else -np.inf
+            if previous is not None and previous[3] > cfg.tolerance and -np.inf < worst < 0.0:
+                # the exact step overshot the floor (a turning link rises faster than its
+                # linearisation): try the fraction of it that brings the deepest row to zero
+                (T0, q0), x0, centre0, worst0 = previous
+                T1, q1 = self._apply(T0, q0, worst0 / (worst0 - worst) * x0, centre0)
+                R1, p1, J1 = self._frame_jacobians(q1, self._frames)
+                rows1 = self._violations(T1, R1, p1)
+                if len(rows1.violation) and rows1.violation.max() <= cfg.tolerance:
+                    T, q, R, p, J, rows = T1, q1, R1, p1, J1, rows1
+                    worst = float(rows.violation.max())
+            depth = max(0.0, worst)
             before = depth if before is None else before
             if contacts == "hold" and held is None:  # the held points: those touching at the start
                 held = self._contact_rows(T, q)[3]
@@ -370,7 +393,7 @@ class ClearanceRepair:
             last = residual
             active = self._active_rows(rows.violation, rows.element)
             owner, local = rows.owner[active], rows.local[active]
-            world = (np.einsum("mij,mj->mi", R[owner], local) + p[owner]) @ T[:3, :3].T + T[:3, 3]
+            world = _to_object(T, R, p, owner, local)
             centre = contact[0].mean(axis=0) if len(contact[0]) else world.mean(axis=0)
             c_rows = self._contact_jacobian_rows(T, q, contact, centre)
             _, a_rows = self._points_and_rows(local, owner, R, p, J, T, centre, rows.normal[active])
@@ -378,6 +401,7 @@ class ClearanceRepair:
                             q)
             if x is None:
                 break
+            previous = ((T, q), x, centre, worst)
             T, q = self._apply(T, q, x, centre)
         return RepairResult(best[1], best[2], float(before or 0.0), float(best[3]), steps)
 
@@ -385,8 +409,7 @@ class ClearanceRepair:
         """Indices of the gripper samples of elements that may be within ``activation`` of the
         object (their bounding sphere is close to it, or their centre lies inside it)."""
         obj, owner = self.object, self._sphere_owner
-        centres = np.einsum("eij,ej->ei", R[owner], self._sphere_centre) + p[owner]
-        centres = centres @ T[:3, :3].T + T[:3, 3]
+        centres = _to_object(T, R, p, owner, self._sphere_centre)
         dist, idx = obj.nearest(centres)
         inside = np.einsum("ei,ei->e", centres - obj.points[idx], obj.normals[idx]) < 0.0
         reach = self._sphere_radius + self.config.activation + self.config.margin \
@@ -403,18 +426,41 @@ class ClearanceRepair:
         """
         sel = self._near_elements(T, R, p)
         owner, local = self._owner[sel], self._points_link[sel]
-        world = (np.einsum("mij,mj->mi", R[owner], local) + p[owner]) @ T[:3, :3].T + T[:3, 3]
+        world = _to_object(T, R, p, owner, local)
         heights, _, planes_n = self._bounding_planes(world)
         parts = [_Rows(owner, local, planes_n, self._floor[sel] - heights, self._element[sel])]
+        if self._convex:
+            parts += self._convex_rows(T, R, p)
+        if self.obstacles:  # every sample of every element stays above each plane
+            owner, local = self._owner, self._points_link
+            world = _to_object(T, R, p, owner, local)
+            for plane in self.obstacles:
+                parts.append(_Rows(owner, local, np.broadcast_to(plane.normal, local.shape),
+                                   self.config.margin - plane.height(world), self._element))
+        return _Rows(*(np.concatenate(v) for v in zip(*parts)))
+
+    def _convex_rows(self, T: np.ndarray, R: np.ndarray, p: np.ndarray) -> list[_Rows]:
+        """Rows of the object points inside (or within reach of) each convex element, pushed out
+        through the element's nearest face (one :class:`_Rows` per element that has any)."""
         reach = _CONVEX_REACH + self.config.margin
-        for c in self._convex:
-            T_link = T[:3, :3] @ R[c.owner]
-            centre = T_link @ c.centre + T[:3, :3] @ p[c.owner] + T[:3, 3]
-            near = self._tree.query_ball_point(centre, c.radius + reach)
+        convex = self._convex
+        owners = np.array([c.owner for c in convex])
+        T_links = T[:3, :3] @ R[owners]  # element (link) rotations in the object frame
+        origins = p[owners] @ np.ascontiguousarray(T[:3, :3].T) + T[:3, 3]
+        centres = np.einsum("cij,cj->ci", T_links, np.array([c.centre for c in convex])) + origins
+        radii = np.array([c.radius for c in convex]) + reach
+        balls = self._tree.query_ball_point(centres, radii, return_sorted=True)
+        parts = []
+        for c, near, T_link, origin in zip(convex, balls, T_links, origins):
             if not near:
                 continue
-            local = (self._surface_points[near] - (T[:3, :3] @ p[c.owner] + T[:3, 3])) @ T_link
-            sd = local @ c.planes[:, :3].T - c.planes[:, 3]
+            local = (self._surface_points[near] - origin) @ T_link
+            # a few spread-out faces first: a point outside one of them by the reach is out
+            sd = local @ c.coarse_t - c.coarse_offsets
+            local = local[sd.max(axis=1) < c.floor + reach]
+            if not len(local):
+                continue
+            sd = local @ c.normals_t - c.offsets
             face = sd.argmax(axis=1)
             depth = sd[np.arange(len(local)), face]
             keep = depth < c.floor + reach
@@ -426,13 +472,7 @@ class ClearanceRepair:
             k = len(foot)
             parts.append(_Rows(np.full(k, c.owner), foot, -(n_link @ T_link.T), c.floor - depth,
                                np.full(k, c.element)))
-        if self.obstacles:  # every sample of every element stays above each plane
-            owner, local = self._owner, self._points_link
-            world = (np.einsum("mij,mj->mi", R[owner], local) + p[owner]) @ T[:3, :3].T + T[:3, 3]
-            for plane in self.obstacles:
-                parts.append(_Rows(owner, local, np.broadcast_to(plane.normal, local.shape),
-                                   self.config.margin - plane.height(world), self._element))
-        return _Rows(*(np.concatenate(v) for v in zip(*parts)))
+        return parts
 
     def _active_rows(self, violation: np.ndarray, element: np.ndarray) -> np.ndarray:
         """Rows to use: within ``activation`` of their floor, at most ``max_rows`` per element (the
@@ -494,8 +534,12 @@ class ClearanceRepair:
         owner = g.point_link[sel]
         return self._points_and_rows(g.points_link[sel], owner, R, p, J, T, centre, plane_n)[1]
 
-    def _solve(self, c_rows, contact, a_rows, violation, element, q) -> np.ndarray | None:
-        """One QP step ``x = (v, w, dq)`` in SI units, or None when OSQP fails."""
+    def _qp(self, c_rows, contact, a_rows, violation, element, q):
+        """The step's QP ``min 1/2 z^T H z + f^T z, lo <= A z <= hi`` over ``z = (x_mm, s)``.
+
+        Returns:
+            (H, f, A, lo, hi, scale): ``x_mm = x * scale`` (millimetre units), ``s`` the slacks.
+        """
         cfg, g = self.config, self.gripper
         n = g.n_joints
         nx = 6 + n
@@ -517,13 +561,13 @@ class ClearanceRepair:
         reg = np.r_[np.full(3, 1.0), np.full(3, lever_mm**2),
                     np.where(g.revolute, lever_mm**2, 1.0)] * cfg.regularisation
         P += 2.0 * np.diag(reg)
-        # one slack per geometry element: n^T A x + s_e >= violation, s_e >= 0 (built dense: small)
+        # one slack per geometry element: n^T A x + s_e >= violation, s_e >= 0
         elements, which = np.unique(element, return_inverse=True)
         ns = len(elements)
         H = np.zeros((nx + ns, nx + ns))
         H[:nx, :nx] = P
         H[nx:, nx:] = 2.0 * cfg.slack_weight * np.eye(ns)
-        q_vec = np.r_[qv, np.zeros(ns)]
+        f = np.r_[qv, np.zeros(ns)]
         A = np.zeros((m + ns + nx, nx + ns))
         A[:m, :nx] = a_rows * unit
         A[np.arange(m), nx + which] = 1.0
@@ -536,22 +580,27 @@ class ClearanceRepair:
         hi = np.r_[step[:6], np.maximum(0.0, np.minimum(step[6:], (g.upper - q) * scale[6:]))]
         lower = np.r_[violation * _MM, np.zeros(ns), lo]
         upper = np.r_[np.full(m, np.inf), np.full(ns, np.inf), hi]
-        P = sp.csc_matrix(np.triu(H))
-        A = sp.csc_matrix(A)
-        solver = osqp.OSQP()
-        solver.setup(P, q_vec, A, lower, upper, verbose=False, eps_abs=1e-3,
-                     eps_rel=1e-3, max_iter=4000, polishing=False)
-        result = solver.solve(raise_error=False)
-        status = getattr(result.info, "status", "")
-        # An inexact step (iteration cap) is still a descent direction for Gauss-Newton; the
-        # caller keeps the best state it visits.
-        failed = result.x is None or not np.all(np.isfinite(result.x[:nx]))
-        if failed or "infeasible" in str(status).lower():
-            logger.debug("clearance QP failed: %s", status)
-            return None
-        x = result.x[:nx] / scale
-        if cfg.lock_palm:
-            x[:6] = 0.0  # OSQP meets zero bounds only to its tolerance
+        return H, f, A, lower, upper, scale
+
+    def _solve(self, c_rows, contact, a_rows, violation, element, q) -> np.ndarray | None:
+        """One QP step ``x = (v, w, dq)`` in SI units, or None when no solver finds one.
+
+        The QP is solved exactly by :func:`isf.dense_qp.solve_dense_qp`; OSQP is the fallback
+        should that report anything but success.
+        """
+        H, f, A, lower, upper, scale = self._qp(c_rows, contact, a_rows, violation, element, q)
+        nx = len(scale)
+        result = solve_dense_qp(H, f, A, lower, upper)
+        if result.status == "solved":
+            z = result.x
+        else:
+            logger.debug("dense clearance QP: %s; falling back to OSQP", result.status)
+            z = _solve_osqp(H, f, A, lower, upper)
+            if z is None:
+                return None
+        x = z[:nx] / scale
+        if self.config.lock_palm:
+            x[:6] = 0.0  # the palm bounds are zero; keep them exactly
         return x
 
     def _apply(self, T, q, x, centre):
@@ -562,6 +611,16 @@ class ClearanceRepair:
         T_new[:3, :3] = Rw @ T[:3, :3]
         T_new[:3, 3] = Rw @ (T[:3, 3] - centre) + centre + x[:3]
         return T_new, g.clip(q + x[6:])
+
+
+def _to_object(T: np.ndarray, R: np.ndarray, p: np.ndarray, owner: np.ndarray,
+               local: np.ndarray) -> np.ndarray:
+    """Object-frame positions (M, 3) of points ``local`` (M, 3) given in the frames of links
+    ``owner`` (M,), whose rotations ``R`` (L, 3, 3) and origins ``p`` (L, 3) are in the gripper
+    frame, for the palm pose ``T`` (4, 4)."""
+    rotation = T[:3, :3] @ R  # the links' rotations in the object frame
+    origin = p @ np.ascontiguousarray(T[:3, :3].T) + T[:3, 3]
+    return np.einsum("mij,mj->mi", rotation[owner], local) + origin[owner]
 
 
 def _dense_surface(obj: ObjectSurface, spacing: float, rng: np.random.Generator):
@@ -587,6 +646,21 @@ def _surface_samples(vertices, faces, spacing, max_points, rng) -> np.ndarray:
     samples, _ = trimesh.sample.sample_surface(mesh, count, seed=int(rng.integers(2**31)))
     corners = mesh.vertices if len(mesh.vertices) <= max_points else np.empty((0, 3))
     return np.concatenate([samples, corners])
+
+
+def _solve_osqp(H, f, A, lower, upper) -> np.ndarray | None:
+    """OSQP's answer to ``min 1/2 z^T H z + f^T z, lower <= A z <= upper``, or None on failure."""
+    solver = osqp.OSQP()
+    solver.setup(sp.csc_matrix(np.triu(H)), f, sp.csc_matrix(A), lower, upper, verbose=False,
+                 eps_abs=1e-3, eps_rel=1e-3, max_iter=4000, polishing=False)
+    result = solver.solve(raise_error=False)
+    status = getattr(result.info, "status", "")
+    # An inexact step (iteration cap) is still a descent direction for Gauss-Newton; the
+    # caller keeps the best state it visits.
+    if result.x is None or not np.all(np.isfinite(result.x)) or "infeasible" in str(status).lower():
+        logger.debug("clearance QP failed in OSQP: %s", status)
+        return None
+    return result.x
 
 
 def repair_penetration(gripper: Gripper, obj: ObjectSurface, fit_result: FitResult,
