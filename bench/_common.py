@@ -357,11 +357,16 @@ def source_fingerprint() -> str:
 
 
 def machine_description() -> str:
-    """One markdown paragraph: date, CPU, cores, load, threads, versions, git state."""
+    """One markdown paragraph: date, CPU, cores, load, threads, versions, git state. Compiles
+    (or loads) isf's kernels first, so that no timing includes it (the paragraph says how long)."""
+    import numba
     import numpy
     import scipy
 
     import isf
+    from isf.compiled import warm_up
+
+    kernels = warm_up()
 
     load = " / ".join(f"{v:.2f}" for v in os.getloadavg()) if hasattr(os, "getloadavg") else "?"
     usable = len(_USABLE_AT_START)
@@ -374,7 +379,8 @@ def machine_description() -> str:
         f"{datetime.datetime.now().isoformat(timespec='seconds')}; CPU: {cpu_model()}, "
         f"{os.cpu_count()} logical cores ({usable} usable); load average (1/5/15 min) at start: "
         f"{load}; {threads}; Python {platform.python_version()}, numpy {numpy.__version__}, "
-        f"scipy {scipy.__version__}, isf {isf.__version__} at git {commit}"
+        f"scipy {scipy.__version__}, numba {numba.__version__} (isf's kernels compiled or loaded in "
+        f"{kernels:.1f} s before timing), isf {isf.__version__} at git {commit}"
         f"{' with uncommitted changes in isf/' if dirty else ''} (isf/*.py sha256 "
         f"{_START_FINGERPRINT})."
     )

@@ -11,6 +11,7 @@ import argparse
 import logging
 import math
 import sys
+import threading
 from pathlib import Path
 
 from . import __version__
@@ -127,6 +128,7 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     gripper = load_gripper(args.gripper)
     obj = open_object(args.object_spec, units=args.units, scale=args.scale)
     obstacles = [Plane.table(args.table)] if args.table is not None else []
+    _compile_kernels(quiet=args.quiet)
     show = not args.quiet and sys.stderr.isatty()
     progress = _ProgressBar(sys.stderr) if show else None
     result = plan(gripper, obj, samples=args.samples, sampler=args.sampler, seed=args.seed,
@@ -142,6 +144,22 @@ def _cmd_plan(args: argparse.Namespace) -> int:
           f"wrote {len(result.grasps) if args.top is None else min(args.top, len(result.grasps))} "
           f"grasps to {out.resolve()}")
     return EXIT_OK if s.collision_free else EXIT_NOTHING_FOUND
+
+
+def _compile_kernels(quiet: bool) -> None:
+    """Compile (or load) the kernels before planning, so the plan's times leave them out; when
+    that takes more than a second (a first run), say what is happening."""
+    from .compiled import warm_up
+
+    notice = threading.Timer(1.0, lambda: print(
+        "isf: compiling its numerical kernels for this machine (once after installing or "
+        "upgrading isf: about half a minute) ...", file=sys.stderr, flush=True))
+    if not quiet:
+        notice.start()
+    try:
+        warm_up()
+    finally:
+        notice.cancel()
 
 
 def _cmd_grippers(args: argparse.Namespace) -> int:

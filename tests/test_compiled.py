@@ -1,0 +1,42 @@
+"""warm_up compiles the kernels the engine calls, with the types the engine passes them."""
+
+import json
+import subprocess
+import sys
+
+_SCRIPT = """
+import json, sys
+from numba.core.dispatcher import Dispatcher
+import isf
+from isf.compiled import warm_up
+
+def signatures():
+    found = {}
+    for name, module in list(sys.modules.items()):
+        if name == "isf" or name.startswith("isf."):
+            for attr, value in vars(module).items():
+                if isinstance(value, Dispatcher):  # keyed where defined, not where imported
+                    found[value.py_func.__module__ + "." + value.py_func.__name__] = len(value.signatures)
+    return found
+
+warm_up()
+before = signatures()
+cylinder = isf.open_object("shape:cylinder")
+isf.plan(isf.load_gripper("paper-parallel"), cylinder, samples=6, seed=0)
+isf.plan(isf.load_gripper("three-finger"), cylinder, samples=6, seed=0, repair_collisions=True)
+print(json.dumps({"before": before, "after": signatures()}))
+"""
+
+
+def test_warm_up_covers_every_kernel_call_of_a_plan():
+    out = subprocess.run([sys.executable, "-c", _SCRIPT], capture_output=True, text=True, check=True)
+    counts = json.loads(out.stdout.strip().splitlines()[-1])
+    before, after = counts["before"], counts["after"]
+    entry_points = {  # the kernels called from Python (the others are called by these)
+        "isf.moment_kernels." + name for name in (
+            "group_moments", "fit_errors", "palm_updates", "palm_systems", "finger_systems",
+            "palm_motions", "points_in_object")
+    } | {"isf.nearest._query", "isf.correspondence._filter_pairs", "isf.box_qp._solve_box_qps",
+         "isf.chain._frame_kinematics", "isf.dense_qp._dual_active_set"}
+    assert {name for name, n in before.items() if n} == entry_points  # all compiled by warm_up
+    assert after == before  # and a plan compiled nothing more
