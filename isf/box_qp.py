@@ -24,7 +24,7 @@ __all__ = ["solve_box_qps"]
 MAX_ROUNDS = 10
 """Active-set rounds before a problem is left uncertified."""
 
-_KKT_TOLERANCE = 1e-9
+KKT_TOLERANCE = 1e-9
 """Relative slack of the KKT checks (of the scale of ``|H| |x| + |c|`` and of the bounds)."""
 
 
@@ -47,14 +47,14 @@ def solve_box_qps(H: np.ndarray, c: np.ndarray, lower: np.ndarray, upper: np.nda
         guess clipped into the bounds.
     """
     as_float = (np.ascontiguousarray(a, dtype=float) for a in (H, c, lower, upper))
-    return _solve_box_qps(*as_float, int(max_rounds), _KKT_TOLERANCE)
+    return _solve_box_qps(*as_float, int(max_rounds), KKT_TOLERANCE)
 
 
 @njit(cache=True, error_model="numpy")
 def _solve_box_qps(H, c, lower, upper, max_rounds, tolerance):
     """:func:`solve_box_qps`, compiled: each problem on its own."""
     n_problems, n = c.shape
-    x, certified = np.empty((n_problems, n)), np.zeros(n_problems, dtype=np.bool_)
+    x, certified = np.zeros((n_problems, n)), np.zeros(n_problems, dtype=np.bool_)
     M, rhs, guess = np.empty((n, n)), np.empty(n), np.empty(n)
     low, high = np.zeros(n, dtype=np.bool_), np.zeros(n, dtype=np.bool_)
     next_low, next_high = np.zeros(n, dtype=np.bool_), np.zeros(n, dtype=np.bool_)

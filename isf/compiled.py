@@ -22,48 +22,39 @@ import time
 import numpy as np
 import pinocchio as pin
 
-from .box_qp import solve_box_qps
-from .chain import KinematicChain
-from .correspondence import match_many
 from .dense_qp import solve_dense_qp
-from .gripper import LinkKinematics
-from .moment_kernels import palm_motions, points_in_object
-from .moments import PairMoments
+from .fit import fit_many
+from .gripper import ContactSurface, Gripper
 from .object_surface import ObjectSurface
-from .segments import Segments
 
 __all__ = ["warm_up"]
 
 
-def _one_joint_model() -> tuple[pin.Model, int]:
-    """A model with one revolute joint and a frame on its link."""
+def _tiny_gripper() -> Gripper:
+    """One revolute joint carrying a 14 x 14 mm pad 5 cm from its axis, facing -z (64 points,
+    8 of them on the coarsest pyramid level: enough pairs to fit)."""
     model = pin.Model()
     joint = model.addJoint(0, pin.JointModelRZ(), pin.SE3.Identity(), "joint")
-    frame = model.addFrame(pin.Frame("link", joint, pin.SE3.Identity(), pin.FrameType.BODY))
-    return model, frame
+    model.lowerPositionLimit[:], model.upperPositionLimit[:] = -1.0, 1.0
+    model.addFrame(pin.Frame("link", joint, pin.SE3.Identity(), pin.FrameType.BODY))
+    grid = np.stack(np.meshgrid(*[np.linspace(-0.007, 0.007, 8)] * 2), axis=-1).reshape(-1, 2)
+    pad = ContactSurface("pad", "link", np.c_[grid + [0.05, 0.0], np.zeros(64)],
+                         np.tile([0.0, 0.0, -1.0], (64, 1)), 2e-4)
+    return Gripper("warm-up", model, (pad,), np.zeros(1))
 
 
 def warm_up() -> float:
-    """Compile, or load from the cache, every compiled kernel of isf; returns the seconds taken."""
+    """Compile, or load from the cache, every compiled kernel of isf; returns the seconds taken.
+
+    It fits a one-joint gripper onto a small plane (the engine's own calls, so its own
+    argument types) and solves a small repair QP.
+    """
     start = time.perf_counter()
-    one = np.zeros(1, dtype=np.int64)
-    point, normal = np.array([[0.0, 0.0, 0.01]]), np.array([[0.0, 0.0, 1.0]])
-    model, frame = _one_joint_model()
-    chain = KinematicChain.from_model(model)
-    R, p, Jv, Jw = chain.frame_kinematics(np.zeros((1, 1)), np.array([frame]))
-    links = LinkKinematics(R, p, Jv, Jw)
-    T = np.eye(4)[None]
-    moments = PairMoments(one, one, point, normal, point, normal, 1, 1)
-    moments.errors(T, links, 0.01)
-    moments.palm_update(T, links, 0.01, 0.1)
-    moments.palm_system(T, links, 0.01)
-    moments.finger_system(T, links, 0.01)
-    palm_motions(np.eye(6)[None], np.zeros((1, 6)), np.zeros((1, 3)), 0.1)
-    points_in_object(T, R, p, one, one, point, normal)
-    surface = ObjectSurface(point, -normal, spacing=0.001)
-    surface.nearest(point, np.zeros(1, dtype=np.int64))
-    match_many(surface, point, Segments.single(1), outlier_factor=3.0, outlier_floor=0.001,
-               reject_duplicates=True, normals=normal, max_normal_angle=1.0)
-    solve_box_qps(np.eye(2)[None], np.ones((1, 2)), -np.ones((1, 2)), np.ones((1, 2)))
+    grid = np.stack(np.meshgrid(*[np.linspace(-0.02, 0.02, 41)] * 2), axis=-1).reshape(-1, 2)
+    plane = ObjectSurface(np.c_[grid + [0.05, 0.0], np.zeros(len(grid))],
+                          np.tile([0.0, 0.0, 1.0], (len(grid), 1)), spacing=0.001)
+    T = np.eye(4)
+    T[2, 3] = 0.001  # the pad 1 mm above the plane
+    fit_many(_tiny_gripper(), plane, T[None])
     solve_dense_qp(np.eye(2), np.ones(2), np.ones((1, 2)), np.zeros(1), np.ones(1))
     return time.perf_counter() - start

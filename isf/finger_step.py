@@ -23,10 +23,12 @@ import numpy as np
 import osqp
 import scipy.sparse as sp
 
-from .box_qp import solve_box_qps
+from numba import njit
+
+from . import box_qp
 from .exceptions import QPStepError
 
-__all__ = ["FingerStepQP", "finger_steps"]
+__all__ = ["FingerStepQP", "bounded_steps", "finger_steps", "solve_uncertified"]
 
 logger = logging.getLogger(__name__)
 
@@ -125,7 +127,7 @@ def finger_steps(
     to the compiled active set (:func:`isf.box_qp.solve_box_qps`), whose first round is
     that minimiser; its answer is kept where the KKT conditions certify it, and only the
     rest go to their OSQP problem (``qps[b]``, set up once per fit, updated and
-    warm-started).
+    warm-started; :func:`solve_uncertified`).
 
     Args:
         AtA: normal matrices ``A^T A``, shape (B, n, n).
@@ -137,19 +139,46 @@ def finger_steps(
     Returns:
         ``dq`` (B, n) and a mask (B,) of fits whose QP OSQP could not solve (their ``dq`` is 0).
     """
-    n = AtA.shape[1]
-    H = AtA + damping * np.eye(n)
-    # A relative ridge only for singular systems; it cannot change a well-posed answer.
-    ridge = 1e-14 * np.maximum(np.trace(H, axis1=1, axis2=2), 1e-300)
-    failed = np.zeros(len(H), dtype=bool)
-    if n == 1:  # a 1x1 solve is one division (the same number LAPACK returns)
-        return np.clip(Atb / (H[:, :, 0] + ridge[:, None]), lower, upper), failed
-    dq, certified = solve_box_qps(H + ridge[:, None, None] * np.eye(n), Atb, lower, upper)
-    outside = np.flatnonzero(~certified)
-    for b in outside.tolist():
+    as_float = [np.ascontiguousarray(a, dtype=float) for a in (AtA, Atb, lower, upper)]
+    dq, exact = bounded_steps(*as_float, float(damping), box_qp.MAX_ROUNDS, box_qp.KKT_TOLERANCE)
+    return dq, solve_uncertified(dq, exact, *as_float, qps)
+
+
+def solve_uncertified(dq: np.ndarray, exact: np.ndarray, AtA: np.ndarray, Atb: np.ndarray,
+                      lower: np.ndarray, upper: np.ndarray, qps: list[FingerStepQP]) -> np.ndarray:
+    """Replace, in place, the steps ``dq`` (B, n) not ``exact`` (B,) by OSQP's answers; a QP OSQP
+    cannot solve gives no step (0, logged as a warning). Returns the mask (B,) of those."""
+    failed = np.zeros(len(dq), dtype=bool)
+    for b in np.flatnonzero(~exact).tolist():
         try:
             dq[b] = qps[b].solve_normal(AtA[b], Atb[b], lower[b], upper[b])
         except QPStepError as err:
             logger.warning("finger step skipped: %s", err)
             dq[b], failed[b] = 0.0, True
-    return dq, failed
+    return failed
+
+
+@njit(cache=True, error_model="numpy")
+def bounded_steps(AtA, Atb, lower, upper, damping, max_rounds, kkt_tolerance):
+    """The finger steps of B fits without OSQP: ``dq`` (B, n) and which are exact (B,) (the
+    one-joint closed form always is; the active set where it is certified).
+
+    Args: as :func:`finger_steps`, and ``max_rounds``, ``kkt_tolerance`` of the active set.
+    """
+    n_fits, n = Atb.shape
+    H = np.empty((n_fits, n, n))
+    for b in range(n_fits):
+        trace = 0.0
+        for i in range(n):
+            for j in range(n):
+                H[b, i, j] = AtA[b, i, j] + damping * (1.0 if i == j else 0.0)
+            trace += H[b, i, i]
+        ridge = 1e-14 * max(trace, 1e-300)  # for singular systems; it cannot change a well-posed answer
+        for i in range(n):
+            H[b, i, i] += ridge
+    if n == 1:  # the paper's eq. 12-13: the minimiser, clipped
+        dq = np.empty((n_fits, 1))
+        for b in range(n_fits):
+            dq[b, 0] = min(max(Atb[b, 0] / H[b, 0, 0], lower[b, 0]), upper[b, 0])
+        return dq, np.ones(n_fits, dtype=np.bool_)
+    return box_qp._solve_box_qps(H, Atb, lower, upper, max_rounds, kkt_tolerance)

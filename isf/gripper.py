@@ -157,7 +157,7 @@ class Gripper:
         links = sorted({s.link for s in self.surfaces}, key=[s.link for s in self.surfaces].index)
         self.contact_links: tuple[str, ...] = tuple(links)
         """The links that carry contact surfaces, in order of first appearance."""
-        self._link_frames = np.array([self.model.getFrameId(link) for link in links], dtype=int)
+        self._link_frames = np.array([self.model.getFrameId(link) for link in links], dtype=np.int64)
         link_of = {link: k for k, link in enumerate(links)}
         self.points_link = np.concatenate([s.points for s in self.surfaces]).astype(float)
         self.normals_link = np.concatenate([s.normals for s in self.surfaces]).astype(float)
@@ -171,6 +171,16 @@ class Gripper:
         self._points_of_link = [np.flatnonzero(self.point_link == k) for k in range(len(links))]
 
     # ------------------------------------------------------------------ sizes
+    @property
+    def chain(self) -> KinematicChain | None:
+        """The compiled kinematics (None for joints it does not cover: Pinocchio only)."""
+        return self._chain
+
+    @property
+    def link_frames(self) -> np.ndarray:
+        """Pinocchio frame ids of :attr:`contact_links`, (L,)."""
+        return self._link_frames
+
     @property
     def n_joints(self) -> int:
         """Number of actuated joints (the length of ``q``)."""

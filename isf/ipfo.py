@@ -5,6 +5,8 @@ all fits is done together: one batched 6x6 palm solve and one batched joint solv
 alternation. The pairs of all fits are stored back to back (:class:`PairBatch`, which
 also evaluates them pair by pair); the alternations work on their moments
 (:class:`isf.moments.PairMoments`), so an alternation costs the same for 50 pairs or 5000.
+The alternations themselves run compiled (:func:`isf.ipfo_kernel.alternate`); this module
+answers what they cannot do themselves (OSQP finger steps, Pinocchio kinematics).
 """
 
 from __future__ import annotations
@@ -13,15 +15,21 @@ from typing import NamedTuple
 
 import numpy as np
 
+from . import box_qp
 from .config import FitConfig
-from .finger_step import FingerStepQP, finger_steps
+from .finger_step import FingerStepQP, solve_uncertified
 from .gripper import Gripper, LinkKinematics
+from .ipfo_kernel import DONE, NEED_FINGER_STEP, alternate
 from .moment_kernels import points_in_object
 from .moments import PairMoments
 from .se3 import cross
 from .segments import Segments
 
 __all__ = ["IPFOResult", "PairBatch", "ipfo"]
+
+_NO_CHAIN = (0, np.zeros((0, 6), dtype=np.int64), np.zeros((0, 5)), np.zeros((0, 3, 4)),
+             np.zeros(0, dtype=np.int64), np.zeros((0, 3, 4)))
+"""Stand-ins for the compiled chain's arrays, for a gripper without one."""
 
 
 def _rotate(R: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -145,12 +153,6 @@ class IPFOResult(NamedTuple):
     links: LinkKinematics
 
 
-def _select(mask: np.ndarray, new: LinkKinematics, old: LinkKinematics) -> LinkKinematics:
-    """Per fit (mask (B,)), the new kinematics where set, else the old."""
-    return LinkKinematics(*(np.where(mask.reshape((-1,) + (1,) * (o.ndim - 1)), n, o)
-                            for n, o in zip(new, old)))
-
-
 def _kinematics_where(gripper: Gripper, links: LinkKinematics, q: np.ndarray, mask: np.ndarray) -> LinkKinematics:
     """Kinematics at ``q`` (B, n) for the fits in ``mask`` (B,); the others keep ``links``."""
     if mask.all():
@@ -182,45 +184,43 @@ def ipfo(pairs: PairBatch, T: np.ndarray, q: np.ndarray, qps: list[FingerStepQP]
         links: the contact-link kinematics at ``q`` when the caller has them (arrays (B, L, ...)).
     """
     gripper, seg = pairs.gripper, pairs.segments
-    alpha = config.normal_weight
-    n_fits = len(seg)
+    n_fits, n = len(seg), gripper.n_joints
     moments = PairMoments(seg.ids, pairs.link, pairs.points_link, pairs.normals_link, pairs.targets,
                           pairs.target_normals, n_fits, len(gripper.contact_links))
-    threshold = config.ipfo_tolerance * seg.counts
-    move_fingers = qps is not None and not config.lock_fingers
-    step = np.where(gripper.revolute, config.max_revolute_step, np.inf)
-    T, q = T.copy(), q.copy()
     if links is None:
         links = gripper.link_kinematics_many(q)
-    error = moments.errors(T, links, alpha)
-    errors: list[list[float]] = [[] for _ in range(n_fits)]
+    T, q = np.array(T, dtype=float), np.array(q, dtype=float).reshape(n_fits, gripper.n_joints)
+    links = LinkKinematics(*(np.array(a, dtype=float) for a in links))  # updated in place
+    error = moments.errors(T, links, config.normal_weight)
     active = np.ones(n_fits, dtype=bool)
-    for _ in range(config.max_ipfo_iterations):
-        T_new = moments.palm_update(T, links, alpha, config.max_rotation_step)
-        q_new, links_new = q, links
-        if move_fingers:
-            AtA, Atb = moments.finger_system(T_new, links, alpha)
-            lower = np.minimum(np.maximum(gripper.lower - q, -step), 0.0)
-            upper = np.maximum(np.minimum(gripper.upper - q, step), 0.0)
-            dq, _ = finger_steps(AtA, Atb, lower, upper, config.finger_damping, qps)
-            q_new = gripper.clip(q + dq)
-            moved = active & np.any(q_new != q, axis=1)  # same joints, same kinematics
-            links_new = _kinematics_where(gripper, links, q_new, moved)
-        error_new = moments.errors(T_new, links_new, alpha)
-        accept = active & (error_new <= error)
-        decrease = error - error_new
-        T = np.where(accept[:, None, None], T_new, T)
-        q = np.where(accept[:, None], q_new, q)
-        if links_new is not links:
-            links = _select(accept, links_new, links)
-        error = np.where(accept, error_new, error)
-        kept = error.tolist()
-        for b in np.flatnonzero(accept).tolist():
-            errors[b].append(kept[b])
-        active = accept & (decrease > threshold)
-        if not active.any():
+    log = np.empty((n_fits, config.max_ipfo_iterations))
+    n_log = np.zeros(n_fits, dtype=np.int64)
+    chain = gripper.chain
+    chain_arrays = (chain.nv, chain.joint_ints, chain.joint_reals, chain.joint_placements,
+                    chain.frame_joints, chain.frame_placements) if chain is not None else _NO_CHAIN
+    fixed = (moments.origin, moments.fit_count, moments.M, moments.N, moments.v, moments.beta2, moments.w,
+             moments.s, moments.count, float(config.normal_weight), float(config.max_rotation_step),
+             config.ipfo_tolerance * seg.counts.astype(float), int(config.max_ipfo_iterations),
+             qps is not None and not config.lock_fingers, gripper.lower, gripper.upper,
+             np.where(gripper.revolute, config.max_revolute_step, np.inf), float(config.finger_damping),
+             box_qp.MAX_ROUNDS, box_qp.KKT_TOLERANCE, chain is not None, *chain_arrays, gripper.link_frames)
+    start, use_dq, dq_given, use_links, links_given = 0, False, np.zeros((n_fits, n)), False, links
+    while True:
+        status, at, AtA, Atb, lower, upper, dq, exact, q_new, moved = alternate(
+            T, q, *links, error, active, log, n_log, *fixed,
+            start, use_dq, dq_given, use_links, *links_given)
+        if status == DONE:
             break
+        if at != start:  # answers belong to one alternation
+            use_dq, use_links = False, False
+        if status == NEED_FINGER_STEP:  # OSQP for the steps the active set could not certify
+            solve_uncertified(dq, exact, AtA, Atb, lower, upper, qps)
+            use_dq, dq_given = True, dq
+        else:  # NEED_KINEMATICS: joints the compiled chain does not cover
+            use_links, links_given = True, _kinematics_where(gripper, links, q_new, moved)
+        start = at
     points, _ = points_in_object(T, links.rotations, links.positions, seg.ids, pairs.link,
                                  pairs.points_link, pairs.normals_link)
     mean_distance = seg.mean(np.abs(np.einsum("kj,kj->k", points - pairs.targets, pairs.target_normals)))
-    return IPFOResult(T, q, error, mean_distance, [tuple(e) for e in errors], links)
+    errors = [tuple(log[b, :k].tolist()) for b, k in enumerate(n_log.tolist())]
+    return IPFOResult(T, q, error, mean_distance, errors, links)

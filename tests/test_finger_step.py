@@ -109,13 +109,11 @@ def test_batched_finger_steps_equal_bvls(rounds, monkeypatch):
     """Interior minimisers come from one batched solve, bounded ones from the certified active
     set or (uncertified: forced here by allowing one active-set round) from OSQP: all equal
     BVLS."""
-    import isf.finger_step as finger_step
-    from isf.box_qp import solve_box_qps
+    import isf.box_qp
 
     calls = {"osqp": 0}
     if rounds is not None:
-        monkeypatch.setattr(finger_step, "solve_box_qps",
-                            lambda *args: solve_box_qps(*args, max_rounds=rounds))
+        monkeypatch.setattr(isf.box_qp, "MAX_ROUNDS", rounds)
     solve_normal = FingerStepQP.solve_normal
 
     def counting(self, *args):

@@ -154,23 +154,22 @@ def test_an_unsolvable_finger_step_is_skipped_not_fatal(monkeypatch, caplog):
     """If OSQP fails on a finger step the fit goes on moving the palm only, and says so.
 
     A revolute step cap of 1e-6 rad makes every joint bound active, so each finger step
-    leaves the interior; with the active-set certificate refused, each goes to OSQP.
+    leaves the interior; with no active-set round allowed, none is certified and each goes
+    to OSQP.
     """
+    import isf.box_qp
     import isf.finger_step as finger_step
 
     def fail(self, AtA, Atb, lower, upper):
         raise isf.QPStepError({"P": AtA}, "primal infeasible")
 
-    def uncertified(H, c, lower, upper):
-        return np.zeros_like(c), np.zeros(len(c), dtype=bool)
-
     monkeypatch.setattr(finger_step.FingerStepQP, "solve_normal", fail)
-    monkeypatch.setattr(finger_step, "solve_box_qps", uncertified)
+    monkeypatch.setattr(isf.box_qp, "MAX_ROUNDS", 0)
     hand = isf.load_gripper("three-finger")
     obj = isf.open_object("shape:sphere")
     T0 = make_transform(np.eye(3), obj.centroid - [0.0, 0.0, 0.08])
     config = isf.FitConfig(max_revolute_step=1e-6, max_iterations=16)
-    with caplog.at_level("WARNING", logger="isf.finger_step"):
+    with caplog.at_level("WARNING", logger="isf"):
         result = isf.fit(hand, obj, T0, config=config)
     np.testing.assert_array_equal(result.q, hand.q_initial)  # the fingers never moved
     assert result.iterations > 0 and np.isfinite(result.mean_distance)
