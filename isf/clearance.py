@@ -65,6 +65,7 @@ from .dense_qp import solve_dense_qp
 from .exceptions import ConfigError, GripperDescriptionError
 from .gripper import Gripper
 from .lockstep import score_fit
+from .nearest import NearestPoints
 from .object_surface import ObjectSurface
 from .result import FitResult
 from .se3 import cross, exp_so3
@@ -250,7 +251,8 @@ class ClearanceRepair:
         self.config = cfg = RepairConfig() if config is None else config
         rng = np.random.default_rng(0)
         self._surface_points, self._surface_normals = _dense_surface(obj, cfg.object_spacing, rng)
-        self._tree = cKDTree(self._surface_points)
+        self._tree = NearestPoints(self._surface_points)  # k nearest
+        self._balls = cKDTree(self._surface_points)  # points within a radius
         model = gripper.model
         links = list(dict.fromkeys(g.link for g in gripper.geometries))
         link_of = np.array([links.index(g.link) for g in gripper.geometries], dtype=int)
@@ -311,8 +313,7 @@ class ClearanceRepair:
         if len(close):
             points, normals = self._surface_points, self._surface_normals
             k = min(_NEIGHBOURS, len(points))
-            _, idx = self._tree.query(world[close], k=k, workers=1)
-            idx = idx.reshape(len(close), k)
+            _, idx = self._tree.query_k(world[close], k)
             h = np.einsum("mki,mki->mk", world[close, None, :] - points[idx], normals[idx])
             best = idx[np.arange(len(close)), h.argmax(axis=1)]
             heights[close] = h.max(axis=1)
@@ -449,7 +450,7 @@ class ClearanceRepair:
         origins = p[owners] @ np.ascontiguousarray(T[:3, :3].T) + T[:3, 3]
         centres = np.einsum("cij,cj->ci", T_links, np.array([c.centre for c in convex])) + origins
         radii = np.array([c.radius for c in convex]) + reach
-        balls = self._tree.query_ball_point(centres, radii, return_sorted=True)
+        balls = self._balls.query_ball_point(centres, radii, return_sorted=True)
         parts = []
         for c, near, T_link, origin in zip(convex, balls, T_links, origins):
             if not near:

@@ -351,8 +351,8 @@ class CollisionChecker:
         runner-up element.
         """
         k = min(_REVERSE_PROBES, len(self._surface.points))
-        nearest, idx = self._surface.tree.query(points, k=k, workers=1)
-        nearest, idx = nearest.reshape(len(points), k)[:, 0], idx.reshape(len(points), k)
+        nearest, idx = self._surface.tree.query_k(points, k)
+        nearest = nearest[:, 0]
         measured = nearest.copy()
         if self._mesh is not None:
             for j in np.argsort(nearest)[:_CLEARANCE_EXACT]:

@@ -11,7 +11,8 @@ import weakref
 
 import numpy as np
 import trimesh
-from scipy.spatial import cKDTree
+
+from .nearest import NearestPoints
 
 NEIGHBOURS = 6  # tangent planes of the nearest surface points a point must lie below to be inside
 
@@ -24,7 +25,8 @@ class TangentPlanes:
         self.normals = np.ascontiguousarray(normals, dtype=float)
         self.spacing = float(spacing)
         """Typical distance between neighbouring points, metres."""
-        self.tree = cKDTree(self.points)
+        self.tree = NearestPoints(self.points)
+        """Exact nearest-neighbour search on ``points``."""
 
     def evaluate(self, query: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Signed distance of points (M, 3), metres (M,), negative inside; the normal of the
@@ -33,8 +35,7 @@ class TangentPlanes:
         if len(query) == 0:
             return np.empty(0), np.empty((0, 3)), np.empty(0), np.empty((0, 3))
         k = min(NEIGHBOURS, len(self.points))
-        dist, idx = self.tree.query(query, k=k, workers=1)
-        idx, dist = idx.reshape(len(query), k), dist.reshape(len(query), k)
+        dist, idx = self.tree.query_k(query, k)
         normals = self.normals[idx]
         heights = np.einsum("mki,mki->mk", query[:, None, :] - self.points[idx], normals)
         best = heights.argmax(axis=1)

@@ -7,6 +7,8 @@ code (one call per batch of queries, no Python per query). A search can start fr
 guess (the point found for the same query in the previous ISF iteration): its distance
 bounds the search from the start, so the tree prunes most branches at once. The answer
 is exact either way: the nearest distance, and one point at that distance.
+:meth:`NearestPoints.query_k` answers the k nearest points the same way (the collision
+checks and the collision repair ask for the tangent planes of the 6 nearest).
 """
 
 from __future__ import annotations
@@ -20,61 +22,57 @@ LEAF_SIZE = 8
 """Points per leaf at most."""
 
 
-def _build(points: np.ndarray, leaf_size: int):
-    """The tree of ``points`` (N, 3), built a level at a time (every node of a level is split
-    with one sort): ``order`` (N,) (the points of a node are ``order[start:stop]``) and per
-    node ``start``, ``stop``, ``axis`` (-1 for a leaf), ``split``, ``left``, ``right``.
+@njit(cache=True)
+def _build(points, leaf_size):
+    """The tree of ``points`` (N, 3): ``order`` (N,) (the points of a node are
+    ``order[start:stop]``) and per node ``start``, ``stop``, ``axis`` (-1 for a leaf), ``split``,
+    ``left``, ``right`` (-1 for a leaf). Nodes are numbered breadth first.
 
-    A node of more than ``leaf_size`` points is split at the median of its widest extent; a
-    node whose points all coincide stays a leaf.
+    A node of more than ``leaf_size`` points is sorted (stably) along its widest extent and
+    split at its median; a node whose points all coincide stays a leaf.
     """
     n = len(points)
+    cap = 2 * n + 1  # a split leaves no child empty, so at most n leaves
     order = np.arange(n)
-    start, stop = [np.array([0])], [np.array([n])]
-    axis, split, left = [np.array([-1])], [np.array([0.0])], [np.array([-1])]
-    a, b, ids = start[0], stop[0], np.array([0])  # the nodes of the level, in order of their ranges
-    n_nodes = 1
-    while len(ids):
-        big = b - a > leaf_size
-        a, b, ids = a[big], b[big], ids[big]
-        if not len(ids):
-            break
-        sizes = b - a
-        first = np.cumsum(sizes) - sizes
-        node = np.repeat(np.arange(len(ids)), sizes)  # the node of each position below
-        position = np.arange(len(node)) - first[node] + a[node]
-        coords = points[order[position]]
-        extent = np.maximum.reduceat(coords, first) - np.minimum.reduceat(coords, first)
-        widest = extent.argmax(axis=1)
-        key = coords[np.arange(len(node)), widest[node]]
-        order[position] = order[position[np.lexsort((key, node))]]  # stable: ties keep their order
-        keep = extent.max(axis=1) > 0.0
-        a, b, ids, widest = a[keep], b[keep], ids[keep], widest[keep]
+    start, stop = np.empty(cap, np.int64), np.empty(cap, np.int64)
+    axis, split, left = np.full(cap, -1, np.int64), np.zeros(cap), np.full(cap, -1, np.int64)
+    start[0], stop[0] = 0, n
+    key, moved = np.empty(n), np.empty(n, np.int64)
+    lo, hi = np.empty(3), np.empty(3)
+    n_nodes, node = 1, 0
+    while node < n_nodes:  # children are numbered in the order of their parents
+        a, b = start[node], stop[node]
+        node += 1
+        if b - a <= leaf_size:
+            continue
+        lo[:] = points[order[a]]
+        hi[:] = lo
+        for i in range(a + 1, b):
+            for d in range(3):
+                lo[d] = min(lo[d], points[order[i], d])
+                hi[d] = max(hi[d], points[order[i], d])
+        widest = 0
+        for d in (1, 2):
+            if hi[d] - lo[d] > hi[widest] - lo[widest]:
+                widest = d
+        if hi[widest] - lo[widest] <= 0.0:
+            continue
+        for i in range(a, b):
+            key[i - a] = points[order[i], widest]
+        rank = np.argsort(key[: b - a], kind="mergesort")  # stable: ties keep their order
+        for i in range(b - a):
+            moved[i] = order[a + rank[i]]
+        order[a:b] = moved[: b - a]
         middle = (a + b) // 2
-        k = len(ids)
-        children = n_nodes + np.arange(2 * k)
-        for values, where, what in ((axis, ids, widest), (split, ids, points[order[middle], widest]),
-                                    (left, ids, children[0::2])):
-            values.append((where, what))
-        a, b = np.stack([a, middle], axis=1).ravel(), np.stack([middle, b], axis=1).ravel()
-        start.append(a)
-        stop.append(b)
-        axis.append(np.full(2 * k, -1))
-        split.append(np.zeros(2 * k))
-        left.append(np.full(2 * k, -1))
-        ids, n_nodes = children, n_nodes + 2 * k
-
-    def assemble(parts, dtype):
-        values = np.concatenate([p for p in parts if isinstance(p, np.ndarray)]).astype(dtype)
-        for p in parts:
-            if isinstance(p, tuple):
-                values[p[0]] = p[1]
-        return values
-
-    left_ = assemble(left, np.int64)
-    right_ = np.where(left_ >= 0, left_ + 1, -1)
-    return (order, np.concatenate(start).astype(np.int64), np.concatenate(stop).astype(np.int64),
-            assemble(axis, np.int64), assemble(split, float), left_, right_)
+        parent = node - 1
+        axis[parent], split[parent], left[parent] = widest, points[order[middle], widest], n_nodes
+        start[n_nodes], stop[n_nodes] = a, middle
+        start[n_nodes + 1], stop[n_nodes + 1] = middle, b
+        n_nodes += 2
+    left = left[:n_nodes].copy()
+    right = np.where(left >= 0, left + 1, -1)
+    return (order, start[:n_nodes].copy(), stop[:n_nodes].copy(), axis[:n_nodes].copy(),
+            split[:n_nodes].copy(), left, right)
 
 
 @njit(cache=True, error_model="numpy")
@@ -128,6 +126,68 @@ def _query(original, points, order, start, stop, axis, split, left, right, queri
     return distance, index
 
 
+_PRUNE_SLACK = 1.0 + 1e-12
+"""A cell is skipped only when its bound exceeds the k-th distance by this factor, so that the
+rounding of the incremental bound can never hide a point tied with the k-th."""
+
+
+@njit(cache=True, error_model="numpy")
+def _query_k(points, order, start, stop, axis, split, left, right, queries, k):
+    """The ``k`` nearest points of each query (M, 3): distances (M, k) and indices (M, k) into
+    the original points, nearest first, ties by lower index; missing neighbours (k > N) are
+    ``inf`` and N. ``points`` are in tree order (see :func:`_query`). Each query keeps its best
+    ``k`` in a sorted insertion list; the worst of them bounds the search."""
+    m, n = len(queries), len(points)
+    distance, index = np.empty((m, k)), np.empty((m, k), np.int64)
+    stack_node = np.empty(128, np.int64)
+    stack_bound = np.empty(128)
+    stack_offset = np.empty((128, 3))
+    best_d2, best = np.empty(k), np.empty(k, np.int64)
+    last = k - 1
+    for q in range(m):
+        x, y, z = queries[q, 0], queries[q, 1], queries[q, 2]
+        best_d2[:] = np.inf
+        best[:] = n
+        worst_d2, worst = np.inf, n
+        top = 0
+        stack_node[0], stack_bound[0] = 0, 0.0
+        stack_offset[0, :] = 0.0
+        while top >= 0:
+            node, bound = stack_node[top], stack_bound[top]
+            ox, oy, oz = stack_offset[top, 0], stack_offset[top, 1], stack_offset[top, 2]
+            top -= 1
+            if bound > worst_d2 * _PRUNE_SLACK:
+                continue
+            while axis[node] >= 0:  # descend towards the query, deferring the far sides
+                d = axis[node]
+                gap = (x if d == 0 else (y if d == 1 else z)) - split[node]
+                near, far = (left[node], right[node]) if gap < 0.0 else (right[node], left[node])
+                old = ox if d == 0 else (oy if d == 1 else oz)
+                far_bound = bound - old * old + gap * gap
+                if far_bound <= worst_d2 * _PRUNE_SLACK:
+                    top += 1
+                    stack_node[top], stack_bound[top] = far, far_bound
+                    stack_offset[top, 0], stack_offset[top, 1], stack_offset[top, 2] = ox, oy, oz
+                    stack_offset[top, d] = gap
+                node = near
+            for i in range(start[node], stop[node]):
+                d2 = (points[i, 0] - x) ** 2 + (points[i, 1] - y) ** 2 + (points[i, 2] - z) ** 2
+                if d2 > worst_d2:
+                    continue
+                p = order[i]
+                if d2 == worst_d2 and p > worst:
+                    continue
+                j = last  # insert (d2, p) in order, dropping the worst
+                while j > 0 and (best_d2[j - 1] > d2 or (best_d2[j - 1] == d2 and best[j - 1] > p)):
+                    best_d2[j], best[j] = best_d2[j - 1], best[j - 1]
+                    j -= 1
+                best_d2[j], best[j] = d2, p
+                worst_d2, worst = best_d2[last], best[last]
+        for j in range(k):
+            distance[q, j], index[q, j] = np.sqrt(best_d2[j]), best[j]
+    return distance, index
+
+
 class NearestPoints:
     """Exact nearest-neighbour search on a fixed point set.
 
@@ -161,3 +221,23 @@ class NearestPoints:
         else:
             guess = np.ascontiguousarray(guess, dtype=np.int64)
         return _query(self.points, self._tree_points, *self._tree, queries, guess)
+
+
+    def query_k(self, queries: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+        """The ``k`` nearest points of each query point.
+
+        Args:
+            queries: query points, (M, 3).
+            k: neighbours per query, >= 1. When ``k`` exceeds the number of points N, the
+                missing neighbours come last with distance ``inf`` and index N (as scipy's
+                cKDTree reports them).
+
+        Returns:
+            distances (M, k) and indices (M, k) into ``points`` (2-D also for k = 1), nearest
+            first; among equally near points the lower index first (so the set is the k least
+            by distance, then index).
+        """
+        if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
+            raise ValueError(f"k must be a positive integer, got {k!r}; ask for at least one neighbour")
+        queries = np.ascontiguousarray(queries, dtype=np.float64).reshape(-1, 3)
+        return _query_k(self._tree_points, *self._tree, queries, int(k))
