@@ -25,6 +25,7 @@ import pinocchio as pin
 from .dense_qp import solve_dense_qp
 from .fit import fit_many
 from .gripper import ContactSurface, Gripper
+from .nearest import NearestPoints
 from .object_surface import ObjectSurface
 
 __all__ = ["warm_up"]
@@ -47,7 +48,8 @@ def warm_up() -> float:
     """Compile, or load from the cache, every compiled kernel of isf; returns the seconds taken.
 
     It fits a one-joint gripper onto a small plane (the engine's own calls, so its own
-    argument types) and solves a small repair QP.
+    argument types), asks for k nearest points as the collision checks do and solves a
+    small repair QP.
     """
     start = time.perf_counter()
     grid = np.stack(np.meshgrid(*[np.linspace(-0.02, 0.02, 41)] * 2), axis=-1).reshape(-1, 2)
@@ -56,5 +58,6 @@ def warm_up() -> float:
     T = np.eye(4)
     T[2, 3] = 0.001  # the pad 1 mm above the plane
     fit_many(_tiny_gripper(), plane, T[None])
+    NearestPoints(plane.points).query_k(plane.points[:2], 6)  # as the collision checks ask
     solve_dense_qp(np.eye(2), np.ones(2), np.ones((1, 2)), np.zeros(1), np.ones(1))
     return time.perf_counter() - start

@@ -173,7 +173,8 @@ class Gripper:
     # ------------------------------------------------------------------ sizes
     @property
     def chain(self) -> KinematicChain | None:
-        """The compiled kinematics (None for joints it does not cover: Pinocchio only)."""
+        """The compiled kinematics, or None when the model has joints it does not cover
+        (then Pinocchio computes everything)."""
         return self._chain
 
     @property

@@ -41,16 +41,19 @@ def alternate(T, q, R, p, Jv, Jw, error, active, log, n_log,
     kinematics ``R, p, Jv, Jw`` (B, L, ...), errors ``error`` (B,) (m^2), ``active`` (B,),
     and the error after each kept alternation ``log[b, :n_log[b]]``.
 
-    Args (besides the state):
-        origin .. count: the moments (:func:`isf.moment_kernels.group_moments`).
-        alpha, max_rotation, threshold (B,), max_iterations, move_fingers: as in
-            :func:`isf.ipfo.ipfo`; ``q_lower``, ``q_upper``, ``step`` (n,): joint limits and
-            the largest joint step; ``damping``: the finger QP's Tikhonov weight;
-            ``max_rounds``, ``kkt_tolerance``: of :func:`isf.box_qp.solve_box_qps`.
-        has_chain .. frames: the compiled chain (:class:`isf.chain.KinematicChain`) and the
-            contact links' frame ids.
-        start: the alternation to begin with; ``use_dq``/``dq_given`` (B, n) and
-            ``use_links``/``*_given`` (B, L, ...): answers to a request of alternation ``start``.
+    Args:
+        origin, fit_count, M, N, v, beta2, w, s, count: the moments
+            (:func:`isf.moment_kernels.group_moments`).
+        alpha, max_rotation, threshold, max_iterations, move_fingers: as in
+            :func:`isf.ipfo.ipfo` (``threshold`` (B,): the least decrease of E that goes on).
+        q_lower, q_upper, step: joint limits and the largest joint step, (n,).
+        damping, max_rounds, kkt_tolerance: of the finger QP and of
+            :func:`isf.box_qp.solve_box_qps`.
+        has_chain, nv, ints, reals, placements, frame_joints, frame_placements, frames: the
+            compiled chain (:class:`isf.chain.KinematicChain`) and the contact links' frame ids.
+        start: the alternation to begin with.
+        use_dq, dq_given: the answer (B, n) to a NEED_FINGER_STEP of alternation ``start``.
+        use_links, R_given, p_given, Jv_given, Jw_given: the answer to a NEED_KINEMATICS.
 
     Returns:
         ``(status, alternation, AtA, Atb, lower, upper, dq, exact, q_new, moved)``: ``status``
