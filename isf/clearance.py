@@ -55,11 +55,11 @@ import numpy as np
 import osqp
 import scipy.sparse as sp
 import trimesh
-from scipy.spatial import cKDTree
 
 from .collision import Plane
 from .collision_surface import closed_mesh
 from .config import FitConfig
+from .convex_elements import ConvexElements
 from .correspondence import match
 from .dense_qp import solve_dense_qp
 from .exceptions import ConfigError, GripperDescriptionError
@@ -79,8 +79,6 @@ _NEIGHBOURS = 6  # tangent planes tried per gripper point (as in isf.collision)
 _CONVEX_REACH = 0.003  # object points this close to a convex element (beyond its floor) get rows, m
 _OUTLIER_FACTOR = 3.0  # pull mode: pairs farther than this times the median distance are dropped
 _MAX_OBJECT_SAMPLES = 40000  # dense resampling of a mesh object
-_MAX_PLANES = 128  # face planes kept per convex element
-_COARSE_PLANES = 16  # of them, the first (most spread-out) ones tried before all
 _NO_CONTACT = (np.empty((0, 3)), np.empty((0, 3)), np.empty((0, 3)), np.empty(0, dtype=int))
 
 
@@ -188,45 +186,6 @@ class _Rows(NamedTuple):
     element: np.ndarray
 
 
-class _ConvexElement:
-    """A closed convex geometry element: outward face planes ``n . x <= d`` (rows ``(n, d)``),
-    centre and radius of a bounding sphere, all in its link frame."""
-
-    def __init__(self, geom, element: int, owner: int, floor: float):
-        self.element, self.owner, self.floor = element, owner, float(floor)
-        self.planes = None
-        mesh = trimesh.Trimesh(np.asarray(geom.vertices, float), np.asarray(geom.faces, np.int64))
-        closed = mesh.is_watertight and mesh.is_winding_consistent
-        if not (len(mesh.faces) and closed and mesh.is_convex):
-            return
-        n = np.sign(mesh.volume) * mesh.face_normals
-        planes = np.c_[n, np.einsum("ij,ij->i", n, mesh.triangles[:, 0])]
-        # A subset of a convex element's face planes bounds a slightly larger polytope: keeping
-        # _MAX_PLANES spread-out normals (farthest-point order) errs on the safe side and keeps
-        # a finely tessellated sphere cheap (1280 faces -> 128 planes: ~0.2 mm larger at 12 mm).
-        self.planes = planes[_spread(n, _MAX_PLANES)]
-        # the same as contiguous (3, P) normals and (P,) offsets (fast products), all and coarse
-        self.normals_t = np.ascontiguousarray(self.planes[:, :3].T)
-        self.offsets = np.ascontiguousarray(self.planes[:, 3])
-        self.coarse_t = np.ascontiguousarray(self.normals_t[:, :_COARSE_PLANES])
-        self.coarse_offsets = self.offsets[:_COARSE_PLANES].copy()
-        self.centre = mesh.vertices.mean(axis=0)
-        self.radius = float(np.linalg.norm(mesh.vertices - self.centre, axis=1).max())
-
-
-def _spread(directions: np.ndarray, count: int) -> np.ndarray:
-    """Indices of at most ``count`` rows of ``directions`` (N, 3) in farthest-point order."""
-    if len(directions) <= count:
-        return np.arange(len(directions))
-    chosen = [0]
-    gap = np.linalg.norm(directions - directions[0], axis=1)
-    for _ in range(count - 1):
-        k = int(gap.argmax())
-        chosen.append(k)
-        gap = np.minimum(gap, np.linalg.norm(directions - directions[k], axis=1))
-    return np.array(chosen)
-
-
 class ClearanceRepair:
     """Repairs penetrating grasps of one gripper on one object (set up once, then cheap).
 
@@ -252,7 +211,6 @@ class ClearanceRepair:
         rng = np.random.default_rng(0)
         self._surface_points, self._surface_normals = _dense_surface(obj, cfg.object_spacing, rng)
         self._tree = NearestPoints(self._surface_points)  # k nearest
-        self._balls = cKDTree(self._surface_points)  # points within a radius
         model = gripper.model
         links = list(dict.fromkeys(g.link for g in gripper.geometries))
         link_of = np.array([links.index(g.link) for g in gripper.geometries], dtype=int)
@@ -275,9 +233,8 @@ class ClearanceRepair:
         self._sphere_centre = np.array([v.mean(axis=0) for v in vertices])
         self._sphere_radius = np.array([np.linalg.norm(v - c, axis=1).max()
                                         for v, c in zip(vertices, self._sphere_centre)])
-        convex = [_ConvexElement(g, e, link_of[e], floor[link_of[e]])
-                  for e, g in enumerate(gripper.geometries)]
-        self._convex = [c for c in convex if c.planes is not None]
+        self._convex = ConvexElements([(g.vertices, g.faces) for g in gripper.geometries], link_of,
+                                      floor[link_of])
 
     # ------------------------------------------------------------ kinematics
     def _frame_jacobians(self, q: np.ndarray, frames: np.ndarray):
@@ -442,38 +399,11 @@ class ClearanceRepair:
 
     def _convex_rows(self, T: np.ndarray, R: np.ndarray, p: np.ndarray) -> list[_Rows]:
         """Rows of the object points inside (or within reach of) each convex element, pushed out
-        through the element's nearest face (one :class:`_Rows` per element that has any)."""
-        reach = _CONVEX_REACH + self.config.margin
+        through the element's nearest face (:mod:`isf.convex_elements`)."""
         convex = self._convex
-        owners = np.array([c.owner for c in convex])
-        T_links = T[:3, :3] @ R[owners]  # element (link) rotations in the object frame
-        origins = p[owners] @ np.ascontiguousarray(T[:3, :3].T) + T[:3, 3]
-        centres = np.einsum("cij,cj->ci", T_links, np.array([c.centre for c in convex])) + origins
-        radii = np.array([c.radius for c in convex]) + reach
-        balls = self._balls.query_ball_point(centres, radii, return_sorted=True)
-        parts = []
-        for c, near, T_link, origin in zip(convex, balls, T_links, origins):
-            if not near:
-                continue
-            local = (self._surface_points[near] - origin) @ T_link
-            # a few spread-out faces first: a point outside one of them by the reach is out
-            sd = local @ c.coarse_t - c.coarse_offsets
-            local = local[sd.max(axis=1) < c.floor + reach]
-            if not len(local):
-                continue
-            sd = local @ c.normals_t - c.offsets
-            face = sd.argmax(axis=1)
-            depth = sd[np.arange(len(local)), face]
-            keep = depth < c.floor + reach
-            if not keep.any():
-                continue
-            face, depth, local = face[keep], depth[keep], local[keep]
-            n_link = c.planes[face, :3]
-            foot = local - depth[:, None] * n_link  # where the object point must leave the element
-            k = len(foot)
-            parts.append(_Rows(np.full(k, c.owner), foot, -(n_link @ T_link.T), c.floor - depth,
-                               np.full(k, c.element)))
-        return parts
+        rows = convex.rows(T, R, p, self._surface_points, _CONVEX_REACH + self.config.margin)
+        return [_Rows(convex.owner[rows.element], rows.foot, rows.normal,
+                      convex.floor[rows.element] - rows.depth, convex.element[rows.element])]
 
     def _active_rows(self, violation: np.ndarray, element: np.ndarray) -> np.ndarray:
         """Rows to use: within ``activation`` of their floor, at most ``max_rows`` per element (the
