@@ -75,6 +75,33 @@ def _build(points, leaf_size):
             split[:n_nodes].copy(), left, right)
 
 
+_PRUNE_SLACK = 1.0 + 1e-12
+"""A cell is skipped only when its bound exceeds the best (k-th) squared distance by this
+factor, so that the rounding of the incremental bound can never hide a tied point."""
+
+
+@njit(cache=True, error_model="numpy")
+def _descend(node, bound, ox, oy, oz, x, y, z, limit, axis, split, left, right,
+             stack_node, stack_bound, stack_offset, top):
+    """From ``node`` (squared cell distance ``bound``, query offsets ``ox, oy, oz`` from its cell)
+    down to the leaf holding the query ``(x, y, z)``, pushing every far side whose cell may hold
+    a point within ``limit`` (a squared distance) with its incremental bound (Arya and Mount).
+    Returns the leaf and the new stack top."""
+    while axis[node] >= 0:
+        d = axis[node]
+        gap = (x if d == 0 else (y if d == 1 else z)) - split[node]
+        near, far = (left[node], right[node]) if gap < 0.0 else (right[node], left[node])
+        old = ox if d == 0 else (oy if d == 1 else oz)
+        far_bound = bound - old * old + gap * gap
+        if far_bound <= limit:
+            top += 1
+            stack_node[top], stack_bound[top] = far, far_bound
+            stack_offset[top, 0], stack_offset[top, 1], stack_offset[top, 2] = ox, oy, oz
+            stack_offset[top, d] = gap
+        node = near
+    return node, top
+
+
 @njit(cache=True, error_model="numpy")
 def _query(original, points, order, start, stop, axis, split, left, right, queries, guess):
     """Nearest point of each query (M, 3): distances (M,) and indices (M,) into ``original``
@@ -93,8 +120,7 @@ def _query(original, points, order, start, stop, axis, split, left, right, queri
             g = guess[k]
             best = g
             best_d2 = (original[g, 0] - x) ** 2 + (original[g, 1] - y) ** 2 + (original[g, 2] - z) ** 2
-        # Each stacked node carries its cell's squared distance from the query and the
-        # query's offset from the cell along each axis (Arya and Mount's incremental distance).
+        # a stacked node carries its cell's squared distance and the query's offsets from it
         top = 0
         stack_node[0], stack_bound[0] = 0, 0.0
         stack_offset[0, :] = 0.0
@@ -102,20 +128,10 @@ def _query(original, points, order, start, stop, axis, split, left, right, queri
             node, bound = stack_node[top], stack_bound[top]
             ox, oy, oz = stack_offset[top, 0], stack_offset[top, 1], stack_offset[top, 2]
             top -= 1
-            if bound > best_d2:
+            if bound > best_d2 * _PRUNE_SLACK:
                 continue
-            while axis[node] >= 0:  # descend towards the query, deferring the far sides
-                d = axis[node]
-                gap = (x if d == 0 else (y if d == 1 else z)) - split[node]
-                near, far = (left[node], right[node]) if gap < 0.0 else (right[node], left[node])
-                old = ox if d == 0 else (oy if d == 1 else oz)
-                far_bound = bound - old * old + gap * gap
-                if far_bound <= best_d2:
-                    top += 1
-                    stack_node[top], stack_bound[top] = far, far_bound
-                    stack_offset[top, 0], stack_offset[top, 1], stack_offset[top, 2] = ox, oy, oz
-                    stack_offset[top, d] = gap
-                node = near
+            node, top = _descend(node, bound, ox, oy, oz, x, y, z, best_d2 * _PRUNE_SLACK, axis, split,
+                                 left, right, stack_node, stack_bound, stack_offset, top)
             for i in range(start[node], stop[node]):
                 d2 = (points[i, 0] - x) ** 2 + (points[i, 1] - y) ** 2 + (points[i, 2] - z) ** 2
                 if d2 <= best_d2:
@@ -124,11 +140,6 @@ def _query(original, points, order, start, stop, axis, split, left, right, queri
                         best, best_d2 = p, d2
         distance[k], index[k] = np.sqrt(best_d2), best
     return distance, index
-
-
-_PRUNE_SLACK = 1.0 + 1e-12
-"""A cell is skipped only when its bound exceeds the k-th distance by this factor, so that the
-rounding of the incremental bound can never hide a point tied with the k-th."""
 
 
 @njit(cache=True, error_model="numpy")
@@ -158,18 +169,8 @@ def _query_k(points, order, start, stop, axis, split, left, right, queries, k):
             top -= 1
             if bound > worst_d2 * _PRUNE_SLACK:
                 continue
-            while axis[node] >= 0:  # descend towards the query, deferring the far sides
-                d = axis[node]
-                gap = (x if d == 0 else (y if d == 1 else z)) - split[node]
-                near, far = (left[node], right[node]) if gap < 0.0 else (right[node], left[node])
-                old = ox if d == 0 else (oy if d == 1 else oz)
-                far_bound = bound - old * old + gap * gap
-                if far_bound <= worst_d2 * _PRUNE_SLACK:
-                    top += 1
-                    stack_node[top], stack_bound[top] = far, far_bound
-                    stack_offset[top, 0], stack_offset[top, 1], stack_offset[top, 2] = ox, oy, oz
-                    stack_offset[top, d] = gap
-                node = near
+            node, top = _descend(node, bound, ox, oy, oz, x, y, z, worst_d2 * _PRUNE_SLACK, axis, split,
+                                 left, right, stack_node, stack_bound, stack_offset, top)
             for i in range(start[node], stop[node]):
                 d2 = (points[i, 0] - x) ** 2 + (points[i, 1] - y) ** 2 + (points[i, 2] - z) ** 2
                 if d2 > worst_d2:
