@@ -21,7 +21,9 @@ import time
 
 import numpy as np
 import pinocchio as pin
+import trimesh
 
+from .convex_elements import ConvexElements
 from .dense_qp import solve_dense_qp
 from .fit import fit_many
 from .gripper import ContactSurface, Gripper
@@ -48,8 +50,8 @@ def warm_up() -> float:
     """Compile, or load from the cache, every compiled kernel of isf; returns the seconds taken.
 
     It fits a one-joint gripper onto a small plane (the engine's own calls, so its own
-    argument types), asks for k nearest points as the collision checks do and solves a
-    small repair QP.
+    argument types), asks for k nearest points as the collision checks do, and runs the
+    repair's convex-element test and a small repair QP.
     """
     start = time.perf_counter()
     grid = np.stack(np.meshgrid(*[np.linspace(-0.02, 0.02, 41)] * 2), axis=-1).reshape(-1, 2)
@@ -59,5 +61,8 @@ def warm_up() -> float:
     T[2, 3] = 0.001  # the pad 1 mm above the plane
     fit_many(_tiny_gripper(), plane, T[None])
     NearestPoints(plane.points).query_k(plane.points[:2], 6)  # as the collision checks ask
+    box = trimesh.creation.box(extents=(0.01, 0.01, 0.01))
+    ConvexElements([(box.vertices, box.faces)], np.zeros(1), np.zeros(1)).rows(
+        np.eye(4), np.eye(3)[None], np.zeros((1, 3)), plane.points, 0.003)
     solve_dense_qp(np.eye(2), np.ones(2), np.ones((1, 2)), np.zeros(1), np.ones(1))
     return time.perf_counter() - start
