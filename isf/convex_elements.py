@@ -139,7 +139,8 @@ def _rows(points, R_links, origins, centres, radii, floors, planes, plane_start,
             best, face = -np.inf, -1
             outside = False
             for f in range(first, last):
-                sd = planes[f, 0] * local[0] + planes[f, 1] * local[1] + planes[f, 2] * local[2] - planes[f, 3]
+                sd = (planes[f, 0] * local[0] + planes[f, 1] * local[1] + planes[f, 2] * local[2]
+                      - planes[f, 3])
                 if sd > best:
                     best, face = sd, f
                 if f == first + n_coarse - 1 and best >= limit:  # out by a coarse face already

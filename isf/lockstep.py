@@ -143,8 +143,8 @@ class LockstepFitter:
         nearest = self.obj.nearest(points, guess)
         for f, s in zip(fits, queries.slices()):
             f.nearest = nearest[1][s]
-        pairs = _match(self.gripper, self.obj, config, points, np.concatenate([f.current_normals for f in fits]),
-                       queries, point_index, nearest)
+        normals = np.concatenate([f.current_normals for f in fits])
+        pairs = _match(self.gripper, self.obj, config, points, normals, queries, point_index, nearest)
         owner = queries.ids[pairs.source]
         n_pairs = np.bincount(owner, minlength=len(fits))
         fitted = n_pairs >= config.min_pairs

@@ -192,7 +192,8 @@ def _palm_system(b, T, rotations, positions, origin, fit_count, M, N, v, w, s, c
         g = b * n_links + l
         _group_pose(T[b], rotations[b, l], positions[b, l], origin[b], A[l], a[l])
         for i in range(3):
-            centre[i] += A[l, i, 0] * s[g, 0] + A[l, i, 1] * s[g, 1] + A[l, i, 2] * s[g, 2] + a[l, i] * s[g, 3]
+            centre[i] += (A[l, i, 0] * s[g, 0] + A[l, i, 1] * s[g, 1] + A[l, i, 2] * s[g, 2]
+                          + a[l, i] * s[g, 3])
     for j in range(3):
         centre[j] /= fit_count[b]
     H[:] = 0.0
