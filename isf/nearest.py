@@ -209,8 +209,7 @@ class NearestPoints:
         Args:
             queries: query points, (M, 3).
             guess: optional candidate index per query (M,) (-1 for none), e.g. the answer of a
-                previous query from nearby; it speeds the search and never changes its answer's
-                distance.
+                previous query from nearby; it speeds the search and never changes its answer.
 
         Returns:
             distances (M,) and indices (M,) into ``points``; among equally near points the
@@ -220,7 +219,11 @@ class NearestPoints:
         if guess is None:
             guess = np.full(len(queries), -1, dtype=np.int64)
         else:
-            guess = np.ascontiguousarray(guess, dtype=np.int64)
+            guess = np.ascontiguousarray(guess, dtype=np.int64).reshape(-1)
+            if len(guess) != len(queries) or (len(guess) and not (
+                    -1 <= guess.min() and guess.max() < len(self.points))):
+                raise ValueError(f"guess must hold one index in [-1, {len(self.points) - 1}] per "
+                                 f"query ({len(queries)}); pass None for no guesses")
         return _query(self.points, self._tree_points, *self._tree, queries, guess)
 
 

@@ -57,6 +57,13 @@ def test_identical_points_and_empty_queries():
     assert distance.shape == index.shape == (0,)
 
 
+def test_refuses_bad_guesses():
+    search = NearestPoints(np.zeros((5, 3)))
+    for guess in ([5, 0], [-2, 0], [0]):
+        with pytest.raises(ValueError, match="one index in"):
+            search.query(np.zeros((2, 3)), np.array(guess))
+
+
 def test_refuses_a_bad_point_set():
     with pytest.raises(ValueError, match=r"\(N, 3\)"):
         NearestPoints(np.empty((0, 3)))
