@@ -153,7 +153,7 @@ def _compile_kernels(quiet: bool) -> None:
 
     notice = threading.Timer(1.0, lambda: print(
         "isf: compiling its numerical kernels for this machine (once after installing or "
-        "upgrading isf: about half a minute) ...", file=sys.stderr, flush=True))
+        "upgrading isf: under a minute) ...", file=sys.stderr, flush=True))
     if not quiet:
         notice.start()
     try:

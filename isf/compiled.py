@@ -7,7 +7,7 @@ correspondence filters (:mod:`isf.correspondence`), the finger step's active set
 (:mod:`isf.dense_qp`). numba compiles a kernel at its first call and caches the
 machine code on disk (in the package's ``__pycache__`` folders, or in numba's user cache
 when those are read-only; ``NUMBA_CACHE_DIR`` moves it). So the first run after
-installing or upgrading isf compiles them, about half a minute on a 2-core machine, and
+installing or upgrading isf compiles them (35-40 s on a 2-core machine), and
 later runs load them in under a second.
 
 :func:`warm_up` compiles (or loads) every kernel on tiny inputs of the types the engine
