@@ -188,7 +188,7 @@ def report(rows: list[dict], note: str, args, deadline) -> list[str]:
 
 
 def main() -> None:
-    parser = _common.base_parser(__doc__.splitlines()[0], repeats=3, budget=20.0)
+    parser = _common.base_parser(__doc__.splitlines()[0], repeats=5, budget=60.0)
     parser.add_argument("--hands", default="three-finger,allegro-right",
                         help="comma-separated hands to run (default: both)")
     parser.add_argument("--finger-damping", type=float, default=None,

@@ -144,7 +144,7 @@ def targets(results: dict, sizes, base_n: int, largest_n: int, base_samples: int
 
 
 def main() -> None:
-    parser = _common.base_parser(__doc__.splitlines()[0], repeats=3, budget=20.0)
+    parser = _common.base_parser(__doc__.splitlines()[0], repeats=5, budget=60.0)
     parser.add_argument("--batch-size", type=int, default=_common.default_batch_size(),
                         help="batch_size of isf.plan (default: its default, "
                              f"{_common.default_batch_size()}; 1 = the paper's sequential loop)")
