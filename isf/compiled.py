@@ -24,6 +24,7 @@ import pinocchio as pin
 import trimesh
 
 from .convex_elements import ConvexElements
+from .correspondence import match
 from .dense_qp import solve_dense_qp
 from .fit import fit_many
 from .gripper import ContactSurface, Gripper
@@ -34,10 +35,10 @@ __all__ = ["warm_up"]
 
 
 def _tiny_gripper() -> Gripper:
-    """One revolute joint carrying a 14 x 14 mm pad 5 cm from its axis, facing -z (64 points,
-    8 of them on the coarsest pyramid level: enough pairs to fit)."""
+    """One revolute joint (about x) carrying a 14 x 14 mm pad 5 cm along x, facing -z (64
+    points, 8 of them on the coarsest pyramid level: enough pairs to fit)."""
     model = pin.Model()
-    joint = model.addJoint(0, pin.JointModelRZ(), pin.SE3.Identity(), "joint")
+    joint = model.addJoint(0, pin.JointModelRX(), pin.SE3.Identity(), "joint")
     model.lowerPositionLimit[:], model.upperPositionLimit[:] = -1.0, 1.0
     model.addFrame(pin.Frame("link", joint, pin.SE3.Identity(), pin.FrameType.BODY))
     grid = np.stack(np.meshgrid(*[np.linspace(-0.007, 0.007, 8)] * 2), axis=-1).reshape(-1, 2)
@@ -50,8 +51,9 @@ def warm_up() -> float:
     """Compile, or load from the cache, every compiled kernel of isf; returns the seconds taken.
 
     It fits a one-joint gripper onto a small plane (the engine's own calls, so its own
-    argument types), asks for k nearest points as the collision checks do, and runs the
-    repair's convex-element test and a small repair QP.
+    argument types), once more with IPFO pausing for Python (as it does for OSQP finger steps
+    and for joints without compiled kinematics), asks for k nearest points as the collision
+    checks do, and runs the repair's convex-element test and a small repair QP.
     """
     start = time.perf_counter()
     grid = np.stack(np.meshgrid(*[np.linspace(-0.02, 0.02, 41)] * 2), axis=-1).reshape(-1, 2)
@@ -60,6 +62,12 @@ def warm_up() -> float:
     T = np.eye(4)
     T[2, 3] = 0.001  # the pad 1 mm above the plane
     fit_many(_tiny_gripper(), plane, T[None])
+    paused = _tiny_gripper()
+    paused._chain = None  # as for joints without compiled kinematics: IPFO pauses for Pinocchio
+    fit_many(paused, plane, T[None], np.array([[0.1]]))  # a tilted pad: the joint turns
+    plane.nearest(plane.points[:2])  # as the collision repair asks
+    match(plane, plane.points[:8] + [0.0, 0.0, 0.001], outlier_factor=3.0, outlier_floor=0.005,
+          reject_duplicates=True)
     NearestPoints(plane.points).query_k(plane.points[:2], 6)  # as the collision checks ask
     box = trimesh.creation.box(extents=(0.01, 0.01, 0.01))
     ConvexElements([(box.vertices, box.faces)], np.zeros(1), np.zeros(1)).rows(

@@ -91,32 +91,48 @@ def _filter_pairs(dist, target, group_starts, fit_starts, outlier_factor, outlie
     (the first such pair when equally near)."""
     m = len(dist)
     keep = np.empty(m, dtype=np.bool_)
+    ranked = np.empty(m)
     for g in range(len(group_starts)):
-        a = group_starts[g]
         b = group_starts[g + 1] if g + 1 < len(group_starts) else m
-        ranked = np.sort(dist[a:b])
-        median = 0.5 * (ranked[(b - a - 1) // 2] + ranked[(b - a) // 2])
-        threshold = max(outlier_factor * median, outlier_floor)
-        for i in range(a, b):
-            keep[i] = dist[i] <= threshold and compatible[i]
-    if not reject_duplicates:
-        return keep
-    for f in range(len(fit_starts)):
-        a = fit_starts[f]
-        b = fit_starts[f + 1] if f + 1 < len(fit_starts) else m
-        kept = np.flatnonzero(keep[a:b]) + a
-        kept = kept[np.argsort(target[kept], kind="mergesort")]  # stable: by row within a target
-        run = 0
-        while run < len(kept):
-            end, best = run + 1, kept[run]
-            while end < len(kept) and target[kept[end]] == target[kept[run]]:
-                if dist[kept[end]] < dist[best]:
-                    best = kept[end]
-                end += 1
-            for i in range(run, end):
-                keep[kept[i]] = kept[i] == best
-            run = end
+        keep_inliers(dist, group_starts[g], b, outlier_factor, outlier_floor, compatible, keep, ranked)
+    if reject_duplicates and m:
+        stamp = np.full(target.max() + 1, -1, np.int64)
+        best_row = np.empty(len(stamp), np.int64)
+        for f in range(len(fit_starts)):
+            b = fit_starts[f + 1] if f + 1 < len(fit_starts) else m
+            reject_duplicate_targets(dist, target, fit_starts[f], b, keep, best_row, stamp, f)
     return keep
+
+
+@njit(cache=True, error_model="numpy")
+def keep_inliers(dist, a, b, outlier_factor, outlier_floor, compatible, keep, ranked):
+    """``keep[a:b]``: the rows of one outlier group within ``max(outlier_factor * median,
+    outlier_floor)`` of their match that are ``compatible``. ``ranked``: scratch of >= b - a."""
+    n = b - a
+    ranked[:n] = dist[a:b]
+    ranked[:n].sort()
+    median = 0.5 * (ranked[(n - 1) // 2] + ranked[n // 2])
+    threshold = max(outlier_factor * median, outlier_floor)
+    for i in range(a, b):
+        keep[i] = dist[i] <= threshold and compatible[i]
+
+
+@njit(cache=True, error_model="numpy")
+def reject_duplicate_targets(dist, target, a, b, keep, best_row, stamp, tag):
+    """Among the kept rows ``a .. b - 1`` of one fit that share a target, keep only the nearest
+    (the first of equally near ones). ``best_row``, ``stamp``: scratch with one entry per object
+    point; ``tag``: a value ``stamp`` does not hold yet (a fresh one per call)."""
+    for i in range(a, b):
+        if not keep[i]:
+            continue
+        t = target[i]
+        if stamp[t] != tag:
+            stamp[t], best_row[t] = tag, i
+        elif dist[i] < dist[best_row[t]]:
+            keep[best_row[t]] = False
+            best_row[t] = i
+        else:
+            keep[i] = False
 
 
 def match(

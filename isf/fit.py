@@ -86,5 +86,5 @@ def fit_many(
         fitter.add(index, T, qb)  # checks the pose and the joints
     results: dict[int, FitResult] = {}
     while fitter.n_active:
-        results.update(fitter.step())
+        results.update(fitter.advance())
     return [results[i] for i in range(len(poses))]

@@ -19,13 +19,13 @@ from . import box_qp
 from .config import FitConfig
 from .finger_step import FingerStepQP, solve_uncertified
 from .gripper import Gripper, LinkKinematics
-from .ipfo_kernel import DONE, NEED_FINGER_STEP, alternate
+from .ipfo_kernel import DONE, NEED_FINGER_STEP, resume
 from .moment_kernels import points_in_object
 from .moments import PairMoments
 from .se3 import cross
 from .segments import Segments
 
-__all__ = ["IPFOResult", "PairBatch", "ipfo"]
+__all__ = ["IPFOResult", "PairBatch", "answer_requests", "ipfo", "ipfo_parameters"]
 
 _NO_CHAIN = (0, np.zeros((0, 6), dtype=np.int64), np.zeros((0, 5)), np.zeros((0, 3, 4)),
              np.zeros(0, dtype=np.int64), np.zeros((0, 3, 4)))
@@ -166,6 +166,44 @@ def _kinematics_where(gripper: Gripper, links: LinkKinematics, q: np.ndarray, ma
     return LinkKinematics(*arrays)
 
 
+def ipfo_parameters(gripper: Gripper, config: FitConfig, move_fingers: bool = True) -> tuple:
+    """The constants of :func:`isf.ipfo_kernel.alternate` for ``gripper`` and ``config``:
+    ``(alpha, max_rotation, ipfo_tolerance, max_ipfo_iterations, move_fingers, q_lower,
+    q_upper, largest joint step, finger damping, active-set rounds, KKT tolerance, has_chain,
+    the chain's nv and arrays, the contact links' frame ids)``. The fingers move only when
+    ``move_fingers``, the gripper has joints and ``config.lock_fingers`` is off."""
+    chain = gripper.chain
+    chain_arrays = (chain.nv, chain.joint_ints, chain.joint_reals, chain.joint_placements,
+                    chain.frame_joints, chain.frame_placements) if chain is not None else _NO_CHAIN
+    return (float(config.normal_weight), float(config.max_rotation_step), float(config.ipfo_tolerance),
+            int(config.max_ipfo_iterations), bool(move_fingers and gripper.n_joints and not config.lock_fingers),
+            gripper.lower, gripper.upper, np.where(gripper.revolute, config.max_revolute_step, np.inf),
+            float(config.finger_damping), box_qp.MAX_ROUNDS, box_qp.KKT_TOLERANCE, chain is not None,
+            *chain_arrays, gripper.link_frames)
+
+
+def answer_requests(gripper: Gripper, qps: list[FingerStepQP] | None, state: tuple, moments: tuple,
+                    params: tuple, reply: tuple) -> None:
+    """Drive :func:`isf.ipfo_kernel.alternate` to the end from its ``reply`` to a first call
+    (from alternation 0), answering each request: OSQP for the finger steps the active set
+    could not certify, Pinocchio for joints the compiled chain does not cover. ``state``,
+    ``moments``, ``params``: as :func:`isf.ipfo_kernel.resume` takes them; ``state`` is
+    updated in place. ``qps``: one finger-step QP per fit."""
+    links = LinkKinematics(*state[2:6])
+    start, use_dq, dq_given, use_links, links_given = 0, False, np.zeros(state[1].shape), False, links
+    while reply[0] != DONE:
+        status, at, AtA, Atb, lower, upper, dq, exact, q_new, moved = reply
+        if at != start:  # answers belong to one alternation
+            use_dq, use_links = False, False
+        if status == NEED_FINGER_STEP:  # OSQP for the steps the active set could not certify
+            solve_uncertified(dq, exact, AtA, Atb, lower, upper, qps)
+            use_dq, dq_given = True, dq
+        else:  # NEED_KINEMATICS: joints the compiled chain does not cover
+            use_links, links_given = True, _kinematics_where(gripper, links, q_new, moved)
+        start = at
+        reply = resume(state, moments, params, start, use_dq, dq_given, use_links, *links_given)
+
+
 def ipfo(pairs: PairBatch, T: np.ndarray, q: np.ndarray, qps: list[FingerStepQP] | None,
          config: FitConfig, links: LinkKinematics | None = None) -> IPFOResult:
     """Alternate palm and finger steps until E stops decreasing (Algorithm 1), for each fit.
@@ -184,7 +222,7 @@ def ipfo(pairs: PairBatch, T: np.ndarray, q: np.ndarray, qps: list[FingerStepQP]
         links: the contact-link kinematics at ``q`` when the caller has them (arrays (B, L, ...)).
     """
     gripper, seg = pairs.gripper, pairs.segments
-    n_fits, n = len(seg), gripper.n_joints
+    n_fits = len(seg)
     moments = PairMoments(seg.ids, pairs.link, pairs.points_link, pairs.normals_link, pairs.targets,
                           pairs.target_normals, n_fits, len(gripper.contact_links))
     if links is None:
@@ -192,33 +230,14 @@ def ipfo(pairs: PairBatch, T: np.ndarray, q: np.ndarray, qps: list[FingerStepQP]
     T, q = np.array(T, dtype=float), np.array(q, dtype=float).reshape(n_fits, gripper.n_joints)
     links = LinkKinematics(*(np.array(a, dtype=float) for a in links))  # updated in place
     error = moments.errors(T, links, config.normal_weight)
-    active = np.ones(n_fits, dtype=bool)
     log = np.empty((n_fits, config.max_ipfo_iterations))
     n_log = np.zeros(n_fits, dtype=np.int64)
-    chain = gripper.chain
-    chain_arrays = (chain.nv, chain.joint_ints, chain.joint_reals, chain.joint_placements,
-                    chain.frame_joints, chain.frame_placements) if chain is not None else _NO_CHAIN
-    fixed = (moments.origin, moments.fit_count, moments.M, moments.N, moments.v, moments.beta2, moments.w,
-             moments.s, moments.count, float(config.normal_weight), float(config.max_rotation_step),
-             config.ipfo_tolerance * seg.counts.astype(float), int(config.max_ipfo_iterations),
-             qps is not None and not config.lock_fingers, gripper.lower, gripper.upper,
-             np.where(gripper.revolute, config.max_revolute_step, np.inf), float(config.finger_damping),
-             box_qp.MAX_ROUNDS, box_qp.KKT_TOLERANCE, chain is not None, *chain_arrays, gripper.link_frames)
-    start, use_dq, dq_given, use_links, links_given = 0, False, np.zeros((n_fits, n)), False, links
-    while True:
-        status, at, AtA, Atb, lower, upper, dq, exact, q_new, moved = alternate(
-            T, q, *links, error, active, log, n_log, *fixed,
-            start, use_dq, dq_given, use_links, *links_given)
-        if status == DONE:
-            break
-        if at != start:  # answers belong to one alternation
-            use_dq, use_links = False, False
-        if status == NEED_FINGER_STEP:  # OSQP for the steps the active set could not certify
-            solve_uncertified(dq, exact, AtA, Atb, lower, upper, qps)
-            use_dq, dq_given = True, dq
-        else:  # NEED_KINEMATICS: joints the compiled chain does not cover
-            use_links, links_given = True, _kinematics_where(gripper, links, q_new, moved)
-        start = at
+    state = (T, q, *links, error, np.ones(n_fits, dtype=bool), log, n_log)
+    sums = (moments.origin, moments.fit_count, moments.M, moments.N, moments.v, moments.beta2, moments.w,
+            moments.s, moments.count, config.ipfo_tolerance * seg.counts.astype(float))
+    params = ipfo_parameters(gripper, config, qps is not None)
+    reply = resume(state, sums, params, 0, False, np.zeros(q.shape), False, *links)
+    answer_requests(gripper, qps, state, sums, params, reply)
     points, _ = points_in_object(T, links.rotations, links.positions, seg.ids, pairs.link,
                                  pairs.points_link, pairs.normals_link)
     mean_distance = seg.mean(np.abs(np.einsum("kj,kj->k", points - pairs.targets, pairs.target_normals)))

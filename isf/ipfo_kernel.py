@@ -4,7 +4,7 @@
 the error test that keeps or undoes the alternation, the stop rule) with the kernels of
 :mod:`isf.moment_kernels`, :mod:`isf.box_qp` and :mod:`isf.chain`. Two things it cannot do
 itself; for them it returns a request and is resumed at the same alternation with the
-answer (:func:`isf.ipfo.ipfo` drives it):
+answer (:func:`isf.ipfo.answer_requests` drives it):
 
 * ``NEED_FINGER_STEP``: a multi-joint finger QP the active set could not certify (it
   goes to OSQP);
@@ -23,7 +23,7 @@ from .chain import _frame_kinematics
 from .finger_step import bounded_steps
 from .moment_kernels import finger_systems, fit_errors, palm_updates
 
-__all__ = ["DONE", "NEED_FINGER_STEP", "NEED_KINEMATICS", "alternate"]
+__all__ = ["DONE", "NEED_FINGER_STEP", "NEED_KINEMATICS", "alternate", "resume"]
 
 DONE, NEED_FINGER_STEP, NEED_KINEMATICS = 0, 1, 2
 
@@ -116,3 +116,20 @@ def alternate(T, q, R, p, Jv, Jw, error, active, log, n_log,
         if not going:
             break
     return DONE, max_iterations, empty3, empty2, empty2, empty2, empty2, none, q, none
+
+
+@njit(cache=True, error_model="numpy")
+def resume(state, moments, params, start, use_dq, dq_given, use_links, R_given, p_given, Jv_given, Jw_given):
+    """:func:`alternate` on its arguments grouped: ``state`` = ``(T, q, R, p, Jv, Jw, error,
+    active, log, n_log)``, ``moments`` = the moments and ``threshold``, ``params`` =
+    :func:`isf.ipfo.ipfo_parameters`; the rest as :func:`alternate` takes them."""
+    T, q, R, p, Jv, Jw, error, active, log, n_log = state
+    origin, fit_count, M, N, v, beta2, w, s, count, threshold = moments
+    (alpha, max_rotation, _, max_iterations, move_fingers, q_lower, q_upper, step, damping, max_rounds,
+     kkt_tolerance, has_chain, nv, ints, reals, placements, frame_joints, frame_placements, frames) = params
+    return alternate(T, q, R, p, Jv, Jw, error, active, log, n_log,
+                     origin, fit_count, M, N, v, beta2, w, s, count,
+                     alpha, max_rotation, threshold, max_iterations, move_fingers,
+                     q_lower, q_upper, step, damping, max_rounds, kkt_tolerance,
+                     has_chain, nv, ints, reals, placements, frame_joints, frame_placements, frames,
+                     start, use_dq, dq_given, use_links, R_given, p_given, Jv_given, Jw_given)

@@ -1,11 +1,13 @@
 """The ISF engine: many fits advanced in lockstep (paper Algorithm 2, batched).
 
 Every fit keeps its own state (pose, joints, pyramid level, stop rule) and follows
-Algorithm 2 exactly as if it ran alone; what the fits share is the arithmetic of each
-ISF iteration: one nearest-neighbour query for the contact points of all fits, one
-batched IPFO (:func:`isf.ipfo.ipfo`). Fits can join at any time, and each leaves as soon
-as its own stop rule fires, so a planner can keep the batch full (new samples replace
-finished ones) while its sampler still learns from every finished fit.
+Algorithm 2 exactly as if it ran alone; what the fits share is the work of each ISF
+iteration, done for all of them in compiled code (:mod:`isf.lockstep_kernel`): the
+correspondences, IPFO (:mod:`isf.ipfo_kernel`) and the stop rules. Fits can join at any
+time, and each leaves as soon as its own stop rule fires, so a planner can keep the batch
+full (new samples replace finished ones) while its sampler still learns from every finished
+fit. Python sees a fit when it starts and when it ends (and when IPFO needs OSQP or Pinocchio,
+:func:`isf.ipfo.answer_requests`).
 
 The stop rule
 -------------
@@ -20,60 +22,31 @@ after ``I_l = I0 / 2**l`` iterations. A gripper that does not move at all
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Hashable
-from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import lockstep_kernel as kernel
 from .config import FitConfig
-from .correspondence import Correspondences, match_many
 from .exceptions import InvalidInputError
 from .finger_step import FingerStepQP
-from .gripper import Gripper, LinkKinematics
-from .ipfo import PairBatch, ipfo
-from .moment_kernels import points_in_object
+from .gripper import Gripper
+from .ipfo import answer_requests, ipfo_parameters
 from .object_surface import ObjectSurface
 from .result import FitResult, FitStatus, IterationRecord
-from .segments import Segments
 
-__all__ = ["LockstepFitter", "outlier_groups", "score_fit"]
+__all__ = ["LockstepFitter", "score_fit"]
 
-
-@dataclass(eq=False)
-class _Fit:
-    """The state of one fit between two ISF iterations."""
-
-    key: Hashable
-    T: np.ndarray
-    q: np.ndarray
-    qp: FingerStepQP | None
-    started: float
-    level: int = 0
-    index: np.ndarray = field(default=None, repr=False)  # contact points of the level
-    start: np.ndarray = field(default=None, repr=False)  # their positions when the level began
-    current: np.ndarray = field(default=None, repr=False)
-    current_normals: np.ndarray = field(default=None, repr=False)
-    nearest: np.ndarray | None = field(default=None, repr=False)  # last nearest object points
-    links: LinkKinematics = field(default=None, repr=False)  # kinematics at q, arrays (1, L, ...)
-    max_iterations: int = 0
-    eps: float = 0.0
-    iteration: int = 0
-    displacement: float = np.inf
-    eta: float = 0.0
-    status: FitStatus = FitStatus.MAX_ITERATIONS
-    history: list = field(default_factory=list)
-
-    def level_converged(self) -> bool:
-        return 1.0 - self.eps <= self.eta <= 1.0 + self.eps
+_STATUS = {kernel.CONVERGED: FitStatus.CONVERGED, kernel.MAX_ITERATIONS: FitStatus.MAX_ITERATIONS,
+           kernel.LOST_CONTACT: FitStatus.LOST_CONTACT}
 
 
 class LockstepFitter:
     """Runs any number of ISF fits of one gripper on one object together.
 
-    Usage: :meth:`add` fits, call :meth:`step` until :attr:`n_active` is 0 (or keep
-    adding); each call returns the fits that finished in it.
+    Usage: :meth:`add` fits, then call :meth:`advance` (or :meth:`step`) until
+    :attr:`n_active` is 0, or keep adding; each call returns the fits that finished in it.
 
     Args:
         gripper: the gripper.
@@ -85,14 +58,21 @@ class LockstepFitter:
         self.gripper = gripper
         self.obj = obj
         self.config = FitConfig() if config is None else config
-        self._levels = [np.flatnonzero(gripper.level_mask(level)) for level in range(self.config.levels)]
-        self._fits: list[_Fit] = []
-        self._spare_qps: list[FingerStepQP] = []
+        self._grip = gripper_arrays(gripper, self.config.levels)
+        self._obj = (obj.points, obj.normals, obj.search.tree)
+        self._fit_params = fit_parameters(self.config)
+        self._ipfo_params = ipfo_parameters(gripper, self.config)
+        self._history_length = sum(max(1, self.config.max_iterations // 2**level)
+                                   for level in range(self.config.levels))
+        self._keys: list[Hashable] = []
+        self._started: list[float] = []
+        self._qps: list[FingerStepQP | None] = []
+        self._slots, self._history = self._allocate(0)
 
     @property
     def n_active(self) -> int:
         """Fits still running."""
-        return len(self._fits)
+        return int(np.count_nonzero(self._slots[6] == kernel.RUNNING))
 
     def add(self, key: Hashable, T_object_gripper: np.ndarray, q: np.ndarray | None = None) -> None:
         """Start a fit from palm pose ``T_object_gripper`` (4, 4) and joints ``q`` (n_joints,;
@@ -103,172 +83,144 @@ class LockstepFitter:
                 or lies outside the joint limits.
         """
         T, q = _check_pose(T_object_gripper), _check_joints(self.gripper, q)
-        fit = _Fit(key, T, q, self._take_qp(), time.perf_counter())
-        self._enter_level(fit, self.config.levels - 1, self.gripper.link_kinematics_many(q[None]))
-        self._fits.append(fit)
-
-    def _take_qp(self) -> FingerStepQP | None:
-        """A finger-step QP for a new fit: a finished fit's (already set up) or a new one."""
-        if not self.gripper.n_joints:
-            return None
-        if self._spare_qps:
-            qp = self._spare_qps.pop()
-            qp.reset()
-            return qp
-        return FingerStepQP(self.gripper.n_joints, self.config.finger_damping)
-
-    def _enter_level(self, fit: _Fit, level: int, links: LinkKinematics) -> None:
-        """Start pyramid level ``level``; ``links``: the fit's kinematics (leading axis of 1)."""
-        fit.level, fit.links = level, links
-        fit.index = self._levels[level]
-        fit.max_iterations = max(1, self.config.max_iterations // 2**level)
-        fit.eps = 2**level * self.config.tolerance
-        (fit.current,), (fit.current_normals,) = self._level_points([fit], fit.T[None], links)
-        fit.start = fit.current
-        fit.nearest = None
-        fit.iteration, fit.displacement, fit.eta = 0, np.inf, 0.0
-
+        free = np.flatnonzero(self._slots[6] == kernel.EMPTY)
+        b = int(free[0]) if len(free) else self._grow()
+        slots = self._slots
+        slots[0][b], slots[1][b] = T, q
+        for array, value in zip(slots[2:6], self.gripper.link_kinematics_many(q[None])):
+            array[b] = value[0]
+        slots[6][b] = kernel.RUNNING
+        slots[17][b] = False  # the nearest-point cache
+        self._history[-1][b] = 0
+        kernel.enter_level(b, self.config.levels - 1, slots, self._grip, self._fit_params)
+        self._keys[b], self._started[b] = key, time.perf_counter()
+        if self._qps[b] is not None:
+            self._qps[b].reset()
 
     def step(self) -> list[tuple[Hashable, FitResult]]:
         """One ISF iteration of every running fit; returns ``(key, result)`` of the fits that ended."""
-        fits, config = self._fits, self.config
-        if not fits:
-            return []
-        counts = np.array([len(f.index) for f in fits])
-        queries = Segments.from_counts(counts)
-        point_index = np.concatenate([f.index for f in fits])
-        points = np.concatenate([f.current for f in fits])
-        # the last iteration's answers bound the search (exact either way)
-        guess = np.concatenate([np.full(len(f.index), -1) if f.nearest is None else f.nearest for f in fits])
-        nearest = self.obj.nearest(points, guess)
-        for f, s in zip(fits, queries.slices()):
-            f.nearest = nearest[1][s]
-        normals = np.concatenate([f.current_normals for f in fits])
-        pairs = _match(self.gripper, self.obj, config, points, normals, queries, point_index, nearest)
-        owner = queries.ids[pairs.source]
-        n_pairs = np.bincount(owner, minlength=len(fits))
-        fitted = n_pairs >= config.min_pairs
-        finished: list[_Fit] = []
-        for f in (f for f, ok in zip(fits, fitted) if not ok):
-            f.status = FitStatus.LOST_CONTACT
-            finished.append(f)
-        if fitted.any():
-            self._iterate([f for f, ok in zip(fits, fitted) if ok], pairs, owner, fitted,
-                          point_index, finished)
-        done = {id(f) for f in finished}
-        self._fits = [f for f in fits if id(f) not in done]
-        for f in finished:
-            if f.qp is not None:
-                self._spare_qps.append(f.qp)
-        return [(f.key, self._result(f)) for f in finished]
+        return self._run(1)
 
-    def _iterate(self, fits: list[_Fit], pairs, owner, fitted, point_index, finished: list[_Fit]) -> None:
-        """IPFO on the matched pairs of ``fits``, then the stop rule of each."""
-        keep = fitted[owner]
-        renumber = np.cumsum(fitted) - 1
-        batch = PairBatch(self.gripper, Segments(renumber[owner[keep]]), point_index[pairs.source[keep]],
-                          self.obj.points[pairs.target[keep]], self.obj.normals[pairs.target[keep]])
-        T = np.stack([f.T for f in fits])
-        q = np.stack([f.q for f in fits]).reshape(len(fits), self.gripper.n_joints)
-        qps = [f.qp for f in fits] if self.gripper.n_joints else None
-        links = LinkKinematics(*(np.concatenate(a) for a in zip(*(f.links for f in fits))))
-        result = ipfo(batch, T, q, qps, self.config, links)
-        current, current_normals = self._level_points(fits, result.T_object_gripper, result.links)
-        for b, f in enumerate(fits):
-            f.T, f.q = result.T_object_gripper[b], result.q[b]
-            f.links = LinkKinematics(*(a[b:b + 1] for a in result.links))
-            f.current, f.current_normals = current[b], current_normals[b]
-            f.iteration += 1
-            previous = f.displacement
-            moved = (f.current - f.start).ravel()
-            f.displacement = math.sqrt(moved @ moved)  # np.linalg.norm's own formula
-            f.eta = 1.0 if f.displacement <= 1e-12 else f.displacement / previous
-            f.history.append(IterationRecord(
-                level=f.level, iteration=f.iteration, mean_distance=float(result.mean_distance[b]),
-                error=float(result.error[b]), n_pairs=int(batch.segments.counts[b]), q=f.q.copy(),
-                ipfo_errors=result.errors[b],
-            ))
-            if f.level_converged() or f.iteration >= f.max_iterations:
-                if f.level == 0:
-                    f.status = FitStatus.CONVERGED if f.level_converged() else FitStatus.MAX_ITERATIONS
-                    finished.append(f)
-                else:
-                    self._enter_level(f, f.level - 1, f.links)
+    def advance(self) -> list[tuple[Hashable, FitResult]]:
+        """ISF iterations of every running fit until at least one ends (or none runs); returns
+        ``(key, result)`` of the fits that ended in the last iteration."""
+        return self._run(None)
 
-    def _level_points(self, fits: list[_Fit], T: np.ndarray, links: LinkKinematics):
-        """Each fit's level points and normals at its new state, object frame: lists of (k_b, 3)."""
-        g = self.gripper
-        index = np.concatenate([f.index for f in fits])
-        seg = Segments.from_counts(np.array([len(f.index) for f in fits]))
-        points, normals = points_in_object(T, links.rotations, links.positions, seg.ids, g.point_link[index],
-                                           g.points_link[index], g.normals_link[index])
-        slices = seg.slices()
-        return [points[s] for s in slices], [normals[s] for s in slices]
+    def _run(self, max_rounds: int | None) -> list[tuple[Hashable, FitResult]]:
+        left = np.iinfo(np.int64).max if max_rounds is None else max_rounds
+        args = (self._slots, self._history, self._grip, self._obj, self._fit_params, self._ipfo_params)
+        while left > 0:
+            reason, rounds, pairs, state, moments, reply = kernel.run(*args, left)
+            if reason != kernel.PENDING:
+                break
+            # IPFO of this round needs Python: finish it, then the round
+            qps = [self._qp(b) for b in pairs[0].tolist()] if self.gripper.n_joints else None
+            answer_requests(self.gripper, qps, state, moments, self._ipfo_params, reply)
+            kernel.finish_round(self._slots, self._history, self._grip, self._fit_params, pairs, state)
+            left -= rounds + 1
+            if np.any(self._slots[6] > kernel.RUNNING):
+                break
+        return [(self._keys[b], self._result(b)) for b in np.flatnonzero(self._slots[6] > kernel.RUNNING).tolist()]
 
-    def _result(self, f: _Fit) -> FitResult:
-        """Score the final state on the finest level with fresh correspondences."""
-        return score_fit(self.gripper, self.obj, f.T, f.q, self.config, f.status,
-                         tuple(f.history), time.perf_counter() - f.started)
+    def _qp(self, b: int) -> FingerStepQP:
+        """Slot ``b``'s finger-step QP (OSQP, set up on first use)."""
+        if self._qps[b] is None:
+            self._qps[b] = FingerStepQP(self.gripper.n_joints, self.config.finger_damping)
+        return self._qps[b]
+
+    def _result(self, b: int) -> FitResult:
+        """The finished fit of slot ``b`` scored on its final state; the slot is freed."""
+        T, q, R, p, status = (a[b] for a in self._slots[:4] + (self._slots[6],))
+        cache = tuple(a[b] for a in self._slots[14:18])
+        self._slots[6][b] = kernel.EMPTY
+        return _scored(self.gripper, self.obj, self.config, self._grip, T.copy(), q.copy(), R, p, cache,
+                       _STATUS[int(status)], self._records(b), time.perf_counter() - self._started[b])
+
+    def _records(self, b: int) -> tuple[IterationRecord, ...]:
+        level, iteration, distance, error, pairs, q, ipfo, n_ipfo, count = (a[b] for a in self._history)
+        return tuple(IterationRecord(level=int(level[h]), iteration=int(iteration[h]),
+                                     mean_distance=float(distance[h]), error=float(error[h]),
+                                     n_pairs=int(pairs[h]), q=q[h].copy(),
+                                     ipfo_errors=tuple(ipfo[h, :n_ipfo[h]].tolist()))
+                     for h in range(int(count)))
+
+    def _allocate(self, n_slots: int) -> tuple[tuple, tuple]:
+        """Empty slot and history arrays for ``n_slots`` fits (see :func:`isf.lockstep_kernel.run`)."""
+        g, S = self.gripper, n_slots
+        n, L, P, K = g.n_joints, len(g.contact_links), g.n_points, kernel.CANDIDATES
+        H, I = self._history_length, self.config.max_ipfo_iterations
+        slots = (np.zeros((S, 4, 4)), np.zeros((S, n)), np.zeros((S, L, 3, 3)), np.zeros((S, L, 3)),
+                 np.zeros((S, L, 3, n)), np.zeros((S, L, 3, n)), np.full(S, kernel.EMPTY, np.int64),
+                 np.zeros(S, np.int64), np.zeros(S, np.int64), np.zeros(S), np.zeros(S),
+                 np.zeros((S, P, 3)), np.zeros((S, P, 3)), np.zeros((S, P, 3)),
+                 np.zeros((S, P, 3)), np.zeros((S, P)), np.zeros((S, P, K), np.int64), np.zeros((S, P), np.bool_))
+        history = (np.zeros((S, H), np.int64), np.zeros((S, H), np.int64), np.zeros((S, H)), np.zeros((S, H)),
+                   np.zeros((S, H), np.int64), np.zeros((S, H, n)), np.zeros((S, H, I)),
+                   np.zeros((S, H), np.int64), np.zeros(S, np.int64))
+        return slots, history
+
+    def _grow(self) -> int:
+        """Double the slots (at least 8); returns the first new one."""
+        old = len(self._keys)
+        slots, history = self._allocate(max(8, 2 * old))
+        for new, current in zip(slots + history, self._slots + self._history):
+            new[:old] = current
+        self._slots, self._history = slots, history
+        extra = len(slots[0]) - old
+        self._keys += [None] * extra
+        self._started += [0.0] * extra
+        self._qps += [None] * extra
+        return old
 
 
-def _match(gripper: Gripper, obj: ObjectSurface, config: FitConfig, points: np.ndarray,
-           normals: np.ndarray, fits: Segments, point_index: np.ndarray,
-           nearest: tuple[np.ndarray, np.ndarray] | None = None) -> Correspondences:
-    """:func:`match_many` with the filters of ``config`` (``point_index``: gripper point of each query)."""
-    return match_many(
-        obj, points, fits, nearest=nearest,
-        outlier_groups=outlier_groups(gripper, fits, point_index, config),
-        outlier_factor=config.outlier_factor, outlier_floor=config.outlier_floor,
-        reject_duplicates=config.reject_duplicates, normals=normals, max_normal_angle=config.max_normal_angle,
-    )
+def gripper_arrays(gripper: Gripper, levels: int) -> tuple:
+    """The gripper's contact points for :func:`isf.lockstep_kernel.run`: link-frame points and
+    normals (P, 3), link and surface of each (P,), the points of each pyramid level (levels, P)
+    (padded) and their counts (levels,)."""
+    P = gripper.n_points
+    level_rows = np.zeros((levels, P), np.int64)
+    level_count = np.zeros(levels, np.int64)
+    for level in range(levels):
+        rows = np.flatnonzero(gripper.level_mask(level))
+        level_rows[level, :len(rows)], level_count[level] = rows, len(rows)
+    return (gripper.points_link, gripper.normals_link, gripper.point_link.astype(np.int64),
+            gripper.point_surface.astype(np.int64), level_rows, level_count)
 
 
-def outlier_groups(gripper: Gripper, fits: Segments, point_index: np.ndarray,
-                   config: FitConfig) -> Segments | None:
-    """The groups whose median sets the outlier threshold: each fit's points of one contact
-    surface (``config.outlier_scope == "surface"``), or None (whole fits).
-
-    Args:
-        gripper: the gripper.
-        fits: the fit of each query point (points grouped by fit).
-        point_index: gripper point index of each query point, (M,), ascending within a fit.
-    """
-    if config.outlier_scope == "fit":
-        return None
-    return Segments.runs(gripper.point_surface[point_index], fits.ids)
+def fit_parameters(config: FitConfig) -> tuple:
+    """The parameters of :func:`isf.lockstep_kernel.run` read from ``config``."""
+    check_normals = config.max_normal_angle < np.pi
+    return (int(config.levels), int(config.max_iterations), float(config.tolerance),
+            float(config.outlier_factor), float(config.outlier_floor), config.outlier_scope == "surface",
+            bool(config.reject_duplicates), bool(check_normals), float(-np.cos(config.max_normal_angle)),
+            int(config.min_pairs), float(config.contact_distance))
 
 
 def score_fit(gripper: Gripper, obj: ObjectSurface, T: np.ndarray, q: np.ndarray, config: FitConfig,
               status: FitStatus, history: tuple[IterationRecord, ...], elapsed: float) -> FitResult:
     """The :class:`FitResult` of a final state ``(T, q)``: all contact points matched afresh."""
-    points, normals = gripper.contact_points(q)
-    R, t = T[:3, :3], T[:3, 3]
-    points = points @ R.T + t
-    normals = normals @ R.T
-    nearest = obj.nearest(points)
-    pairs = _match(gripper, obj, config, points, normals, Segments.single(len(points)),
-                   np.arange(len(points)), nearest)
-    if len(pairs.source):
-        batch = PairBatch(gripper, Segments.single(len(pairs.source)), pairs.source,
-                          obj.points[pairs.target], obj.normals[pairs.target])
-        state = batch.evaluate(gripper.link_kinematics_many(q[None]))
-        d, c = batch.residuals(T[None], *state[:2])  # c = (R n^p)^T n^q + 1
-        mean_distance = float(np.abs(d).mean())
-        misalignment = float(np.arccos(np.clip(1.0 - c, -1.0, 1.0)).mean())
-        error = float(batch.errors(T[None], *state[:2], config.normal_weight)[0])
-    else:
-        mean_distance = misalignment = error = float("inf")
-    touching = nearest[0] <= config.contact_distance
-    surface_contact = {
-        s.name: float(touching[gripper.point_surface == k].mean())
-        for k, s in enumerate(gripper.surfaces)
-    }
+    P = gripper.n_points
+    links = gripper.link_kinematics(q)
+    cache = (np.zeros((P, 3)), np.zeros(P), np.zeros((P, kernel.CANDIDATES), np.int64), np.zeros(P, np.bool_))
+    return _scored(gripper, obj, config, gripper_arrays(gripper, 1), np.array(T, dtype=float),
+                   np.array(q, dtype=float), links.rotations, links.positions, cache, status, history, elapsed)
+
+
+def _scored(gripper: Gripper, obj: ObjectSurface, config: FitConfig, grip: tuple, T: np.ndarray,
+            q: np.ndarray, R: np.ndarray, p: np.ndarray, cache: tuple, status: FitStatus,
+            history: tuple[IterationRecord, ...], elapsed: float) -> FitResult:
+    """:func:`isf.lockstep_kernel.score_state` of a state as a :class:`FitResult` (``grip``:
+    :func:`gripper_arrays`; ``cache``: the state's nearest-point cache)."""
+    mean_distance, misalignment, error, rows, targets, points, touching = kernel.score_state(
+        T, R, p, grip, (obj.points, obj.normals, obj.search.tree), fit_parameters(config),
+        float(config.normal_weight), *cache)
+    surface_contact = {s.name: float(touching[gripper.point_surface == k].mean())
+                       for k, s in enumerate(gripper.surfaces)}
     return FitResult(
-        T_object_gripper=T, q=q.copy(), joints=gripper.joints(q), mean_distance=mean_distance,
-        normal_misalignment=misalignment, error=error, n_pairs=len(pairs.source),
-        contact_points=points[pairs.source], object_points=obj.points[pairs.target],
-        surface_contact=surface_contact, iterations=len(history), status=status,
-        history=history, time=elapsed,
+        T_object_gripper=T, q=q, joints=gripper.joints(q), mean_distance=float(mean_distance),
+        normal_misalignment=float(misalignment), error=float(error), n_pairs=len(rows),
+        contact_points=points[rows], object_points=obj.points[targets], surface_contact=surface_contact,
+        iterations=len(history), status=status, history=history, time=elapsed,
     )
 
 

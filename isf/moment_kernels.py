@@ -13,8 +13,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["fit_errors", "finger_systems", "group_moments", "palm_motion", "palm_motions", "palm_systems",
-           "palm_updates", "points_in_object", "solve_small"]
+__all__ = ["fit_errors", "finger_systems", "group_moments", "link_poses", "palm_motion", "palm_motions",
+           "palm_systems", "palm_updates", "place", "points_in_object", "solve_small"]
 
 
 @njit(cache=True, error_model="numpy")
@@ -85,6 +85,16 @@ def group_moments(fit, link, points_link, normals_link, targets, target_normals,
             for j in range(i):
                 N[g, i, j] = N[g, j, i]
     return origin, fit_count, M, N, v, beta2, w, s, count
+
+
+@njit(cache=True, error_model="numpy")
+def link_poses(T, rotations, positions, A, a):
+    """Every contact link's pose in the object frame, in place: ``A[l] = R_palm R_link`` (L, 3, 3)
+    and the origins ``a[l]`` (L, 3), for one fit (``T`` (4, 4), ``rotations`` (L, 3, 3),
+    ``positions`` (L, 3))."""
+    no_origin = np.zeros(3)
+    for l in range(len(rotations)):
+        _group_pose(T, rotations[l], positions[l], no_origin, A[l], a[l])
 
 
 @njit(cache=True, error_model="numpy")
@@ -410,15 +420,21 @@ def points_in_object(T, rotations, positions, fit, link, points_link, normals_li
         points (K, 3), metres, and normals (K, 3), object frame.
     """
     points, normals = np.empty((len(fit), 3)), np.empty((len(fit), 3))
-    A, a, no_origin = np.empty((3, 3)), np.empty(3), np.zeros(3)
+    A, a, no_origin = np.empty((1, 3, 3)), np.empty((1, 3)), np.zeros(3)
     last = (-1, -1)
     for k in range(len(fit)):
         if (fit[k], link[k]) != last:
             last = (fit[k], link[k])
-            _group_pose(T[fit[k]], rotations[fit[k], link[k]], positions[fit[k], link[k]], no_origin, A, a)
-        for i in range(3):
-            points[k, i] = A[i, 0] * points_link[k, 0] + A[i, 1] * points_link[k, 1] \
-                + A[i, 2] * points_link[k, 2] + a[i]
-            normals[k, i] = A[i, 0] * normals_link[k, 0] + A[i, 1] * normals_link[k, 1] \
-                + A[i, 2] * normals_link[k, 2]
+            _group_pose(T[fit[k]], rotations[fit[k], link[k]], positions[fit[k], link[k]], no_origin, A[0], a[0])
+        place(A, a, 0, points_link, normals_link, k, points, normals, k)
     return points, normals
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def place(A, a, l, x, nu, k, points, normals, i):
+    """``points[i] = A[l] x[k] + a[l]`` and ``normals[i] = A[l] nu[k]``, in place: link-frame point
+    and normal ``k`` moved by the pose ``A[l]`` (3, 3), ``a[l]`` (3,) of its link in the object
+    frame (``_group_pose``)."""
+    for j in range(3):
+        points[i, j] = A[l, j, 0] * x[k, 0] + A[l, j, 1] * x[k, 1] + A[l, j, 2] * x[k, 2] + a[l, j]
+        normals[i, j] = A[l, j, 0] * nu[k, 0] + A[l, j, 1] * nu[k, 1] + A[l, j, 2] * nu[k, 2]

@@ -58,6 +58,13 @@ class ObjectSurface:
         """True when the surface came from a triangle mesh (not a point cloud)."""
         return self.mesh_faces is not None
 
+    @property
+    def search(self) -> NearestPoints:
+        """The exact nearest-point search on :attr:`points` (built on first use)."""
+        if self._search is None:
+            self._search = NearestPoints(self.points)
+        return self._search
+
     def nearest(self, query: np.ndarray, guess: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Nearest surface point of each query point (exact; see :mod:`isf.nearest`).
 
@@ -70,6 +77,4 @@ class ObjectSurface:
             (distances (M,) in metres, indices (M,) into :attr:`points`; the lowest index
             among equally near points).
         """
-        if self._search is None:
-            self._search = NearestPoints(self.points)
-        return self._search.query(query, guess)
+        return self.search.query(query, guess)

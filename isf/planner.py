@@ -239,7 +239,7 @@ def plan(
             fitter.add(index, proposal.T_object_gripper, proposal.q)
             proposals[index] = proposal
         t0 = time.perf_counter()
-        finished = fitter.step()
+        finished = fitter.advance()
         fit_time += time.perf_counter() - t0
         outcomes = []
         for index, result in sorted(finished, key=lambda item: item[0]):

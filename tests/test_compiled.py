@@ -33,9 +33,10 @@ def test_warm_up_covers_every_kernel_call_of_a_plan():
     counts = json.loads(out.stdout.strip().splitlines()[-1])
     before, after = counts["before"], counts["after"]
     entry_points = {  # the kernels the engine calls from Python (they call the others)
-        "isf.moment_kernels.group_moments", "isf.moment_kernels.fit_errors",
-        "isf.moment_kernels.points_in_object", "isf.ipfo_kernel.alternate", "isf.nearest._query",
-        "isf.correspondence._filter_pairs", "isf.chain._frame_kinematics", "isf.dense_qp._dual_active_set",
+        "isf.lockstep_kernel.run", "isf.lockstep_kernel.enter_level", "isf.lockstep_kernel.score_state",
+        "isf.lockstep_kernel.finish_round", "isf.ipfo_kernel.resume", "isf.nearest._query",
+        "isf.nearest._query_k", "isf.correspondence._filter_pairs", "isf.chain._frame_kinematics",
+        "isf.dense_qp._dual_active_set",
     }
     assert entry_points <= {name for name, n in before.items() if n}  # compiled by warm_up
     assert after == before  # and a plan compiled nothing more
