@@ -17,6 +17,7 @@ from __future__ import annotations
 import coal
 import numpy as np
 import trimesh
+from numba import njit
 from scipy.spatial import cKDTree
 
 from .collision_surface import TangentPlanes
@@ -93,6 +94,34 @@ def patches(samples: np.ndarray, area: float, count: int) -> tuple[np.ndarray, n
     return centres, nearest
 
 
+@njit(cache=True, error_model="numpy")
+def _in_box(points, R, t, lo, hi):
+    """The points (M, 3) that ``(p - t) @ R`` maps into the box [lo, hi], so mapped (K, 3)."""
+    out = np.empty((len(points), 3))
+    k = 0
+    for i in range(len(points)):
+        x, y, z = points[i, 0] - t[0], points[i, 1] - t[1], points[i, 2] - t[2]
+        inside = True
+        for d in range(3):
+            out[k, d] = x * R[0, d] + y * R[1, d] + z * R[2, d]
+            inside = inside and lo[d] <= out[k, d] <= hi[d]
+        k += inside
+    return out[:k]
+
+
+@njit(cache=True, error_model="numpy")
+def _depth_below_planes(local, planes):
+    """Deepest of the points (M, 3) below every plane ``[n, n . x]`` (F, 4), metres (0 if none)."""
+    deepest = 0.0
+    for i in range(len(local)):
+        sd = -np.inf
+        for f in range(len(planes)):
+            sd = max(sd, local[i, 0] * planes[f, 0] + local[i, 1] * planes[f, 1]
+                     + local[i, 2] * planes[f, 2] - planes[f, 3])
+        deepest = max(deepest, -sd)
+    return deepest
+
+
 class Element:
     """One gripper geometry element, precomputed in its link frame.
 
@@ -106,6 +135,7 @@ class Element:
             as ``[n, n . x]`` rows (None when qhull failed).
         centre, radius: bounding sphere of the hull.
         closed: a closed, consistently wound mesh (it has an inside).
+        bounds: its bounding box, (2, 3) as [lower, upper] corners.
         planes: outward face planes (F, 4) of a closed convex element, else None.
         surface: tangent planes of a closed non-convex element's surface, else None.
         contact: some contact-surface point of its link lies on it (set by the checker).
@@ -116,6 +146,7 @@ class Element:
         mesh = trimesh.Trimesh(np.asarray(geom.vertices, float), np.asarray(geom.faces, np.int64),
                                process=True, validate=False)
         self.mesh = mesh
+        self.bounds = np.array(mesh.bounds, dtype=float)
         self.hull_planes = None
         try:
             with np.errstate(invalid="ignore", divide="ignore"):  # flat sheets: zero hull volume
@@ -146,6 +177,14 @@ class Element:
         self.contact = False
         self._field: SignedDistanceGrid | None = None  # built on first need
 
+    def object_depth(self, points: np.ndarray, T_object_element: np.ndarray, tolerance: float) -> float:
+        """Deepest of the object points (M, 3), object frame, inside this closed element posed at
+        ``T_object_element`` (4, 4), metres (0 if none): :meth:`depth_of` of those in its box."""
+        if not self.closed:
+            return 0.0
+        local = _in_box(points, T_object_element[:3, :3], T_object_element[:3, 3], self.bounds[0], self.bounds[1])
+        return self.depth_of(local, tolerance)
+
     def depth_of(self, local: np.ndarray, tolerance: float) -> float:
         """Deepest of the points (M, 3), link frame, inside this closed element, metres (0 if none).
 
@@ -157,13 +196,12 @@ class Element:
         if not self.closed or len(local) == 0:
             return 0.0
         if self.planes is not None:
-            sd = (local @ self.planes[:, :3].T - self.planes[:, 3]).max(axis=1)
-            return float(max(0.0, -sd.min()))
+            return _depth_below_planes(local, self.planes)
         if self.hull_planes is not None:
             local = local[(local @ self.hull_planes[:, :3].T - self.hull_planes[:, 3]).max(axis=1) < 0]
         if len(local) > _FIELD_FROM:  # screen: the deepest-looking points and any that may be too deep
             if self._field is None:
-                self._field = SignedDistanceGrid(self.surface, self.mesh.bounds)
+                self._field = SignedDistanceGrid(self.surface, self.bounds)
             value = self._field.interpolate(local)
             maybe = np.flatnonzero(value < self._field.h)
             top = maybe[np.argsort(value[maybe])[:_FIELD_DEEPEST]]

@@ -23,10 +23,12 @@ import numpy as np
 import pinocchio as pin
 import trimesh
 
+from .collision_elements import Element
+from .collision_voxels import SurfaceVoxels
 from .convex_elements import ConvexElements
 from .dense_qp import solve_dense_qp
 from .fit import fit_many
-from .gripper import ContactSurface, Gripper
+from .gripper import ContactSurface, Gripper, LinkGeometry
 from .nearest import NearestPoints
 from .object_surface import ObjectSurface
 
@@ -50,8 +52,9 @@ def warm_up() -> float:
     """Compile, or load from the cache, every compiled kernel of isf; returns the seconds taken.
 
     It fits a one-joint gripper onto a small plane (the engine's own calls, so its own
-    argument types), asks for k nearest points as the collision checks do, and runs the
-    repair's convex-element test and a small repair QP.
+    argument types), asks for k nearest points as the collision checks do, runs the
+    repair's convex-element test and a small repair QP, and the collision checks' voxel and
+    element tests.
     """
     start = time.perf_counter()
     grid = np.stack(np.meshgrid(*[np.linspace(-0.02, 0.02, 41)] * 2), axis=-1).reshape(-1, 2)
@@ -65,4 +68,9 @@ def warm_up() -> float:
     ConvexElements([(box.vertices, box.faces)], np.zeros(1), np.zeros(1)).rows(
         np.eye(4), np.eye(3)[None], np.zeros((1, 3)), plane.points, 0.003)
     solve_dense_qp(np.eye(2), np.ones(2), np.ones((1, 2)), np.zeros(1), np.ones(1))
+    voxels = SurfaceVoxels(box.vertices, box.faces)  # the collision checks' voxels and elements
+    voxels.clear(box.vertices, box.vertices), voxels.distance_below(box.vertices)
+    element = Element(LinkGeometry("link", "box", box.vertices, box.faces), 0, np.random.default_rng(0))
+    T[:3, 3] = [0.05, 0.0, 0.0]  # some plane points inside the box
+    element.object_depth(plane.points, T, 0.002)
     return time.perf_counter() - start
