@@ -110,16 +110,31 @@ def _in_box(points, R, t, lo, hi):
 
 
 @njit(cache=True, error_model="numpy")
-def _depth_below_planes(local, planes):
-    """Deepest of the points (M, 3) below every plane ``[n, n . x]`` (F, 4), metres (0 if none)."""
-    deepest = 0.0
+def _above_planes(local, planes):
+    """Largest signed distance of each point (M, 3) to the planes ``[n, n . x]`` (F, 4), (M,)."""
+    out = np.empty(len(local))
     for i in range(len(local)):
         sd = -np.inf
         for f in range(len(planes)):
             sd = max(sd, local[i, 0] * planes[f, 0] + local[i, 1] * planes[f, 1]
                      + local[i, 2] * planes[f, 2] - planes[f, 3])
-        deepest = max(deepest, -sd)
-    return deepest
+        out[i] = sd
+    return out
+
+
+@njit(cache=True, error_model="numpy")
+def _at_nearest_node(values, lo, h, points):
+    """``values`` (grid with corner ``lo``, spacing ``h``) at each point's (M, 3) nearest node,
+    (M,); inf off the grid."""
+    out = np.empty(len(points))
+    for i in range(len(points)):
+        out[i] = np.inf
+        a = np.rint((points[i, 0] - lo[0]) / h)
+        b = np.rint((points[i, 1] - lo[1]) / h)
+        c = np.rint((points[i, 2] - lo[2]) / h)
+        if 0 <= a < values.shape[0] and 0 <= b < values.shape[1] and 0 <= c < values.shape[2]:
+            out[i] = values[int(a), int(b), int(c)]
+    return out
 
 
 class Element:
@@ -196,9 +211,9 @@ class Element:
         if not self.closed or len(local) == 0:
             return 0.0
         if self.planes is not None:
-            return _depth_below_planes(local, self.planes)
+            return float(max(0.0, -_above_planes(local, self.planes).min()))
         if self.hull_planes is not None:
-            local = local[(local @ self.hull_planes[:, :3].T - self.hull_planes[:, 3]).max(axis=1) < 0]
+            local = local[_above_planes(local, self.hull_planes) < 0]
         if len(local) > _FIELD_FROM:  # screen: the deepest-looking points and any that may be too deep
             if self._field is None:
                 self._field = SignedDistanceGrid(self.surface, self.bounds)
@@ -229,9 +244,4 @@ class SignedDistanceGrid:
     def interpolate(self, points: np.ndarray) -> np.ndarray:
         """Signed distance of points (M, 3) at their nearest grid node, metres (M,); inf outside
         the grid. Off by at most ``h`` (half a cell diagonal, for a 1-Lipschitz distance)."""
-        cell = np.rint((points - self.lo) / self.h).astype(np.int64)
-        inside_grid = np.all((cell >= 0) & (cell < self.shape), axis=1)
-        out = np.full(len(points), np.inf)
-        c = cell[inside_grid]
-        out[inside_grid] = self.values[c[:, 0], c[:, 1], c[:, 2]]
-        return out
+        return _at_nearest_node(self.values, self.lo, self.h, np.ascontiguousarray(points, dtype=np.float64))

@@ -23,13 +23,13 @@ import numpy as np
 import pinocchio as pin
 import trimesh
 
-from .collision_elements import Element
+from .collision_elements import Element, SignedDistanceGrid
+from .collision_surface import TangentPlanes
 from .collision_voxels import SurfaceVoxels
 from .convex_elements import ConvexElements
 from .dense_qp import solve_dense_qp
 from .fit import fit_many
 from .gripper import ContactSurface, Gripper, LinkGeometry
-from .nearest import NearestPoints
 from .object_surface import ObjectSurface
 
 __all__ = ["warm_up"]
@@ -63,7 +63,8 @@ def warm_up() -> float:
     T = np.eye(4)
     T[2, 3] = 0.001  # the pad 1 mm above the plane
     fit_many(_tiny_gripper(), plane, T[None])
-    NearestPoints(plane.points).query_k(plane.points[:2], 6)  # as the collision checks ask
+    planes = TangentPlanes(plane.points, plane.normals, 0.001)  # as the collision checks ask
+    SignedDistanceGrid(planes, np.array([[0.04, -0.01, -0.01], [0.06, 0.01, 0.01]]), 64).interpolate(plane.points[:2])
     box = trimesh.creation.box(extents=(0.01, 0.01, 0.01))
     ConvexElements([(box.vertices, box.faces)], np.zeros(1), np.zeros(1)).rows(
         np.eye(4), np.eye(3)[None], np.zeros((1, 3)), plane.points, 0.003)
