@@ -29,18 +29,24 @@ Penetration depth (how deep gripper geometry sits inside the object or an obstac
 How the samples are evaluated (what makes a check cheap)
     Each element's samples are grouped into about 24 *patches*. Elements whose bounding sphere
     lies wholly outside the object, and patches farther from the object's bounding box than
-    their radius, are settled without samples. The estimate is evaluated exactly at the other
-    patch centres; at every other sample it is predicted to first order (the centre's value plus
-    the offset along the active tangent plane's normal), trusted to within 0.1 mm + 0.5 x the
-    distance to the centre. Exactly evaluated are then only the samples whose bound could change
-    a verdict (deeper than the tolerance), those that could be deeper than the deepest known
-    sample of any element (a few per element and round), those that decide whether a non-contact
-    element touches, and those that decide whether an element lies wholly inside. So the
-    verdicts equal those of evaluating every sample whenever the prediction keeps its bound (a
-    corpus of 720 planned and perturbed grasps agrees on all; ``bench/bench_collision.py``); the
-    reported penetration is the deepest *evaluated* sample, within the prediction bound of the
-    deepest of all samples (typically equal; tens of micrometres on curved contacts). A
-    non-convex element screens many object points with a grid of its own estimate first.
+    their radius, are settled without samples; so, for a closed mesh object, are elements whose
+    box and patches whose ball lie, with 2 mm to spare, in voxels certainly outside the mesh
+    (``isf.collision_voxels``; samples that far outside the mesh are taken to be outside).
+    The estimate is evaluated exactly at the other patch centres, but a patch wanted only for
+    the clearance of a non-contact element only when it may hold a sample nearer to the object
+    than the nearest evaluated centre of a non-contact element (by a lower bound of its centre's
+    distance from the object's box and the voxels, less its radius). At every other sample it
+    is predicted to first order (the centre's value plus the offset along the active tangent
+    plane's normal), trusted to within 0.1 mm + 0.5 x the distance to the centre. Exactly
+    evaluated are then only the samples whose bound could change a verdict (deeper than the
+    tolerance), those that could be deeper than the deepest known sample of any element (a few
+    per element and round), those that decide whether a non-contact element touches, and those
+    that decide whether an element lies wholly inside. So the verdicts equal those of evaluating
+    every sample whenever the prediction keeps its bound (a corpus of 720 planned and perturbed
+    grasps agrees on all; ``bench/bench_collision.py``); the reported penetration is the deepest
+    *evaluated* sample, within the prediction bound of the deepest of all samples (typically
+    equal; tens of micrometres on curved contacts). A non-convex element screens many object
+    points with a grid of its own estimate first.
 
 Clearance
     the smallest distance between a *non-contact* element and the object (contact elements are
@@ -176,7 +182,9 @@ class CollisionReport:
 class CollisionChecker:
     """Checks posed grippers against one object and fixed obstacle planes.
 
-    Build it once per (gripper, object) pair; :meth:`check` is then cheap, and
+    Build it once per (gripper, object) pair; :meth:`check` is then cheap (what it derives
+    from the gripper and from a mesh object is kept while they live, so building another for
+    the same gripper or object is cheap too), and
     :meth:`check_many` checks a batch of poses (for now one :meth:`check` each; no work is
     shared across grasps yet).
 
@@ -327,17 +335,19 @@ def _prepared(gripper: Gripper, links: list[str]) -> tuple[list[Element], dict, 
     rng = np.random.default_rng(0)
     elements = [Element(g, links.index(g.link), rng) for g in gripper.geometries]
     _mark_contact_elements(elements, gripper)
-    _PREPARED[id(gripper)] = (weakref.ref(gripper), elements, _packed(elements), rng.bit_generator.state)
+    state = rng.bit_generator.state
+    _PREPARED[id(gripper)] = (weakref.ref(gripper), elements, _packed(elements), state)
     weakref.finalize(gripper, _PREPARED.pop, id(gripper), None)
     return _PREPARED[id(gripper)][1:]
 
 
 def _mark_contact_elements(elements: list[Element], gripper: Gripper) -> None:
     for link in dict.fromkeys(s.link for s in gripper.surfaces):
-        points = np.concatenate([s.points for s in gripper.surfaces if s.link == link]).astype(float)
+        points = np.concatenate([s.points for s in gripper.surfaces if s.link == link])
         mine = [e for e in elements if e.link == link]
-        probe = points[:: max(1, len(points) // 32)]
-        hits = [e for e in mine if point_triangle_distance(probe, e.mesh.triangles).max() <= _ON_SURFACE]
+        probe = points[:: max(1, len(points) // 32)].astype(float)
+        hits = [e for e in mine
+                if point_triangle_distance(probe, e.mesh.triangles).max() <= _ON_SURFACE]
         for e in hits or mine:
             e.contact = True
 
@@ -357,7 +367,8 @@ def _object_surface(obj: ObjectSurface, state: dict) -> TangentPlanes:
         rng = np.random.default_rng(0)
         rng.bit_generator.state = state
         points, normals = even_samples(mesh, spacing, _MAX_OBJECT_SAMPLES, rng)
-        memo[key] = TangentPlanes(np.concatenate([obj.points, points]), np.concatenate([obj.normals, normals]),
+        memo[key] = TangentPlanes(np.concatenate([obj.points, points]),
+                                  np.concatenate([obj.normals, normals]),
                                   float(np.sqrt(mesh.area / len(points))))
     return memo[key]
 
@@ -369,11 +380,13 @@ def _packed(els: list[Element]) -> dict[str, np.ndarray]:
     Every patch is a contiguous run of rows with its centre first; elements are contiguous
     runs of patches.
     """
-    out = {"_frames": np.array([e.frame for e in els]), "_contact": np.array([e.contact for e in els]),
+    out = {"_frames": np.array([e.frame for e in els]),
+           "_contact": np.array([e.contact for e in els]),
            "_hull": np.concatenate([e.hull for e in els]),
            "_hull_start": np.r_[0, np.cumsum([len(e.hull) for e in els])[:-1]],
            "_hull_element": np.repeat(np.arange(len(els)), [len(e.hull) for e in els]),
-           "_sphere": np.array([e.centre for e in els]), "_radius": np.array([e.radius for e in els])}
+           "_sphere": np.array([e.centre for e in els]),
+           "_radius": np.array([e.radius for e in els])}
     samples, offsets, starts, sizes, owner, last, rows = [], [], [], [], [], [], 0
     for i, e in enumerate(els):
         is_centre = np.zeros(len(e.samples), dtype=bool)
@@ -386,7 +399,8 @@ def _packed(els: list[Element]) -> dict[str, np.ndarray]:
         starts.append(rows + first)
         sizes.append(np.diff(np.r_[first, len(order)]))
         owner.append(np.full(len(first), i))
-        last.append(int(np.searchsorted(first, np.flatnonzero(order == len(e.samples) - 1)[0], "right") - 1))
+        vertex = np.flatnonzero(order == len(e.samples) - 1)[0]
+        last.append(int(np.searchsorted(first, vertex, "right") - 1))
         rows += len(order)
     offsets = np.concatenate(offsets)
     reach = np.linalg.norm(offsets, axis=1)
@@ -482,12 +496,13 @@ class _Check:
         pe = c._patch_element[patch]
         R, t = self.poses[:, :3, :3], self.poses[:, :3, 3]
         centre = np.einsum("pij,pj->pi", R[pe], c._samples[c._patch_start[patch]]) + t[pe]
-        # A patch farther from the object's box than its radius holds no sample inside the
-        # object; one farther than its radius plus the clearance bound none nearer to it.
+        # A patch farther from the object's box than its radius (or whose ball lies in voxels
+        # outside a mesh object) holds no sample inside the object; one farther than its radius
+        # plus the clearance bound none nearer to it.
         gap = np.linalg.norm(np.maximum(np.maximum(c._lo - centre, centre - c._hi), 0.0), axis=1)
         rho = c._patch_radius[patch]
         outside = gap > rho
-        if c._voxels is not None:  # or whose ball lies in voxels outside a mesh object
+        if c._voxels is not None:
             test = np.flatnonzero(self.deep[pe] & ~outside)
             reach = (rho[test] + _VOXEL_MARGIN)[:, None]
             outside[test] = c._voxels.clear(centre[test] - reach, centre[test] + reach)

@@ -192,12 +192,14 @@ class Element:
         self.contact = False
         self._field: SignedDistanceGrid | None = None  # built on first need
 
-    def object_depth(self, points: np.ndarray, T_object_element: np.ndarray, tolerance: float) -> float:
+    def object_depth(self, points: np.ndarray, T_object_element: np.ndarray,
+                     tolerance: float) -> float:
         """Deepest of the object points (M, 3), object frame, inside this closed element posed at
         ``T_object_element`` (4, 4), metres (0 if none): :meth:`depth_of` of those in its box."""
         if not self.closed:
             return 0.0
-        local = _in_box(points, T_object_element[:3, :3], T_object_element[:3, 3], self.bounds[0], self.bounds[1])
+        R, t = T_object_element[:3, :3], T_object_element[:3, 3]
+        local = _in_box(points, R, t, self.bounds[0], self.bounds[1])
         return self.depth_of(local, tolerance)
 
     def depth_of(self, local: np.ndarray, tolerance: float) -> float:
@@ -244,4 +246,5 @@ class SignedDistanceGrid:
     def interpolate(self, points: np.ndarray) -> np.ndarray:
         """Signed distance of points (M, 3) at their nearest grid node, metres (M,); inf outside
         the grid. Off by at most ``h`` (half a cell diagonal, for a 1-Lipschitz distance)."""
-        return _at_nearest_node(self.values, self.lo, self.h, np.ascontiguousarray(points, dtype=np.float64))
+        points = np.ascontiguousarray(points, dtype=np.float64)
+        return _at_nearest_node(self.values, self.lo, self.h, points)

@@ -28,7 +28,8 @@ def _highest_planes(query, points, normals, idx):
         height[q], best[q] = -np.inf, idx[q, 0]
         for j in range(k):
             o = idx[q, j]
-            h = ((query[q, 0] - points[o, 0]) * normals[o, 0] + (query[q, 1] - points[o, 1]) * normals[o, 1]
+            h = ((query[q, 0] - points[o, 0]) * normals[o, 0]
+                 + (query[q, 1] - points[o, 1]) * normals[o, 1]
                  + (query[q, 2] - points[o, 2]) * normals[o, 2])
             if h > height[q]:
                 height[q], best[q] = h, o

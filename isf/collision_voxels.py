@@ -9,8 +9,9 @@ spare on every side. A voxel that a triangle's bounding box overlaps is *blocked
   whether every voxel it overlaps is outside (a summed-volume table of the blocked and
   enclosed voxels answers it in eight look-ups);
 * a voxel ``c`` steps (Chebyshev, in voxels) from the nearest blocked one is at least
-  ``(c - 1)`` voxel edges from the surface; a point beyond the grid, at least as far as the
-  nearest point of the grid (projection onto a box never lengthens a distance).
+  ``(c - 1)`` voxel edges from the surface; a point ``p`` beyond the grid, with ``g`` its
+  nearest point on the grid, at least ``sqrt(|p - g|^2 + b(g)^2)`` where ``b(g)`` bounds
+  ``g``'s distance (the angle at ``g`` towards any point of the box is obtuse).
 """
 
 from __future__ import annotations
@@ -119,9 +120,13 @@ def _distance_below(steps, lo, size, points):
     out = np.empty(len(points))
     cell = np.empty(3, np.int64)
     for q in range(len(points)):
+        beyond = 0.0  # squared distance to the grid
         for d in range(3):
-            cell[d] = min(max(int(np.floor((points[q, d] - lo[d]) / size)), 0), steps.shape[d] - 1)
-        out[q] = max(steps[cell[0], cell[1], cell[2]] - 1, 0) * size
+            x = min(max(points[q, d], lo[d]), lo[d] + steps.shape[d] * size)
+            beyond += (points[q, d] - x) ** 2
+            cell[d] = min(max(int(np.floor((x - lo[d]) / size)), 0), steps.shape[d] - 1)
+        inner = max(steps[cell[0], cell[1], cell[2]] - 1, 0) * size
+        out[q] = np.sqrt(beyond + inner * inner)
     return out
 
 
@@ -175,8 +180,9 @@ class SurfaceVoxels:
     def clear(self, box_lo: np.ndarray, box_hi: np.ndarray) -> np.ndarray:
         """Whether each axis-aligned box (corners (M, 3), metres) lies wholly outside the mesh,
         by its voxels, (M,) bool. False says nothing."""
-        return _clear(self._table, self.lo, self.size, np.ascontiguousarray(box_lo, dtype=np.float64),
-                      np.ascontiguousarray(box_hi, dtype=np.float64))
+        box_lo = np.ascontiguousarray(box_lo, dtype=np.float64)
+        box_hi = np.ascontiguousarray(box_hi, dtype=np.float64)
+        return _clear(self._table, self.lo, self.size, box_lo, box_hi)
 
     def distance_below(self, points: np.ndarray) -> np.ndarray:
         """A lower bound of each point's (M, 3) distance to the mesh, metres (M,)."""

@@ -64,14 +64,16 @@ def warm_up() -> float:
     T[2, 3] = 0.001  # the pad 1 mm above the plane
     fit_many(_tiny_gripper(), plane, T[None])
     planes = TangentPlanes(plane.points, plane.normals, 0.001)  # as the collision checks ask
-    SignedDistanceGrid(planes, np.array([[0.04, -0.01, -0.01], [0.06, 0.01, 0.01]]), 64).interpolate(plane.points[:2])
+    bounds = np.array([[0.04, -0.01, -0.01], [0.06, 0.01, 0.01]])
+    SignedDistanceGrid(planes, bounds, 64).interpolate(plane.points[:2])
     box = trimesh.creation.box(extents=(0.01, 0.01, 0.01))
     ConvexElements([(box.vertices, box.faces)], np.zeros(1), np.zeros(1)).rows(
         np.eye(4), np.eye(3)[None], np.zeros((1, 3)), plane.points, 0.003)
     solve_dense_qp(np.eye(2), np.ones(2), np.ones((1, 2)), np.zeros(1), np.ones(1))
     voxels = SurfaceVoxels(box.vertices, box.faces)  # the collision checks' voxels and elements
     voxels.clear(box.vertices, box.vertices), voxels.distance_below(box.vertices)
-    element = Element(LinkGeometry("link", "box", box.vertices, box.faces), 0, np.random.default_rng(0))
+    element = Element(LinkGeometry("link", "box", box.vertices, box.faces), 0,
+                      np.random.default_rng(0))
     T[:3, 3] = [0.05, 0.0, 0.0]  # some plane points inside the box
     element.object_depth(plane.points, T, 0.002)
     return time.perf_counter() - start
