@@ -29,18 +29,24 @@ Penetration depth (how deep gripper geometry sits inside the object or an obstac
 How the samples are evaluated (what makes a check cheap)
     Each element's samples are grouped into about 24 *patches*. Elements whose bounding sphere
     lies wholly outside the object, and patches farther from the object's bounding box than
-    their radius, are settled without samples. The estimate is evaluated exactly at the other
-    patch centres; at every other sample it is predicted to first order (the centre's value plus
-    the offset along the active tangent plane's normal), trusted to within 0.1 mm + 0.5 x the
-    distance to the centre. Exactly evaluated are then only the samples whose bound could change
-    a verdict (deeper than the tolerance), those that could be deeper than the deepest known
-    sample of any element (a few per element and round), those that decide whether a non-contact
-    element touches, and those that decide whether an element lies wholly inside. So the
-    verdicts equal those of evaluating every sample whenever the prediction keeps its bound (a
-    corpus of 720 planned and perturbed grasps agrees on all; ``bench/bench_collision.py``); the
-    reported penetration is the deepest *evaluated* sample, within the prediction bound of the
-    deepest of all samples (typically equal; tens of micrometres on curved contacts). A
-    non-convex element screens many object points with a grid of its own estimate first.
+    their radius, are settled without samples; so, for a closed mesh object, are elements whose
+    box and patches whose ball lie, with 2 mm to spare, in voxels certainly outside the mesh
+    (``isf.collision_voxels``; samples that far outside the mesh are taken to be outside).
+    The estimate is evaluated exactly at the other patch centres, but a patch wanted only for
+    the clearance of a non-contact element only when it may hold a sample nearer to the object
+    than the nearest evaluated centre of a non-contact element (by a lower bound of its centre's
+    distance from the object's box and the voxels, less its radius). At every other sample it
+    is predicted to first order (the centre's value plus the offset along the active tangent
+    plane's normal), trusted to within 0.1 mm + 0.5 x the distance to the centre. Exactly
+    evaluated are then only the samples whose bound could change a verdict (deeper than the
+    tolerance), those that could be deeper than the deepest known sample of any element (a few
+    per element and round), those that decide whether a non-contact element touches, and those
+    that decide whether an element lies wholly inside. So the verdicts equal those of evaluating
+    every sample whenever the prediction keeps its bound (a corpus of 720 planned and perturbed
+    grasps agrees on all; ``bench/bench_collision.py``); the reported penetration is the deepest
+    *evaluated* sample, within the prediction bound of the deepest of all samples (typically
+    equal; tens of micrometres on curved contacts). A non-convex element screens many object
+    points with a grid of its own estimate first.
 
 Clearance
     the smallest distance between a *non-contact* element and the object (contact elements are
@@ -59,6 +65,7 @@ Clearance
 from __future__ import annotations
 
 import logging
+import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -68,6 +75,7 @@ import pinocchio as pin
 
 from .collision_elements import Element, bvh, even_samples, point_triangle_distance
 from .collision_surface import TangentPlanes, closed_mesh, mesh_memo
+from .collision_voxels import SurfaceVoxels
 from .exceptions import GripperDescriptionError, InvalidInputError
 from .gripper import Gripper
 from .object_surface import ObjectSurface
@@ -90,6 +98,7 @@ _DEPTH_RESOLUTION = 5e-5  # deeper-looking samples than the deepest evaluated ge
 _CLEARANCE_PATCHES = 2  # patches nearest the object whose samples are candidates for clearance
 _REVERSE_PROBES = 4  # object samples whose distance to the nearest-looking elements is measured
 _CULL_MARGIN = 5e-4  # an element whose bounding sphere is this far outside the object is outside, m
+_VOXEL_MARGIN = 2e-3  # a box this far inside voxels outside a mesh object is outside it, m
 
 
 def object_bvh(obj: ObjectSurface) -> coal.BVHModelOBBRSS:
@@ -99,6 +108,17 @@ def object_bvh(obj: ObjectSurface) -> coal.BVHModelOBBRSS:
     if "bvh" not in memo:
         memo["bvh"] = bvh(np.asarray(obj.mesh_vertices, float), np.asarray(obj.mesh_faces, np.int64))
     return memo["bvh"]
+
+
+def object_voxels(obj: ObjectSurface) -> SurfaceVoxels | None:
+    """The voxels around a closed, outward mesh object (None for any other), built once per
+    mesh (see :func:`isf.collision_surface.mesh_memo`)."""
+    if closed_mesh(obj) is None:
+        return None
+    memo = mesh_memo(obj)
+    if "voxels" not in memo:
+        memo["voxels"] = SurfaceVoxels(obj.mesh_vertices, obj.mesh_faces)
+    return memo["voxels"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -162,7 +182,9 @@ class CollisionReport:
 class CollisionChecker:
     """Checks posed grippers against one object and fixed obstacle planes.
 
-    Build it once per (gripper, object) pair; :meth:`check` is then cheap, and
+    Build it once per (gripper, object) pair; :meth:`check` is then cheap (what it derives
+    from the gripper and from a mesh object is kept while they live, so building another for
+    the same gripper or object is cheap too), and
     :meth:`check_many` checks a batch of poses (for now one :meth:`check` each; no work is
     shared across grasps yet).
 
@@ -192,7 +214,6 @@ class CollisionChecker:
             raise GripperDescriptionError(gripper.name, [
                 "it has no link geometry to check for collisions; give its links <collision> elements"])
         self.gripper, self.object, self.tolerance = gripper, obj, float(tolerance)
-        rng = np.random.default_rng(0)
         links = list(dict.fromkeys(g.link for g in gripper.geometries))
         missing = [link for link in links if not gripper.model.existFrame(link)]
         if missing:
@@ -202,84 +223,19 @@ class CollisionChecker:
         self._links = links
         self._frame_ids = [gripper.model.getFrameId(link) for link in links]
         self._data = gripper.model.createData()
-        self._elements = [Element(g, links.index(g.link), rng) for g in gripper.geometries]
-        self._mark_contact_elements(gripper)
-        self._surface = TangentPlanes(*self._object_samples(obj, rng))
+        self._elements, packed, state = _prepared(gripper, links)
+        vars(self).update(packed)
+        self._surface = _object_surface(obj, state)
         self._points = np.asarray(obj.points, dtype=float)  # probes for object points inside elements
         self._lo, self._hi = self._surface.points.min(axis=0), self._surface.points.max(axis=0)
         self._mesh = object_bvh(obj) if obj.is_mesh else None
+        self._voxels = object_voxels(obj)
         # Distance from the object's surface to its nearest sample, at most (a generous guess:
         # random samples leave gaps a few spacings wide; 0 for a bare point cloud).
         self._cover = 3.0 * self._surface.spacing if obj.is_mesh else 0.0
         self._point = coal.Sphere(0.0)
         self._identity = coal.Transform3s()
         self._distance_request = coal.DistanceRequest()
-        self._pack()
-
-    # ------------------------------------------------------------------ set-up
-    def _mark_contact_elements(self, gripper: Gripper) -> None:
-        for link in dict.fromkeys(s.link for s in gripper.surfaces):
-            points = np.concatenate([s.points for s in gripper.surfaces if s.link == link]).astype(float)
-            mine = [e for e in self._elements if e.link == link]
-            probe = points[:: max(1, len(points) // 32)]
-            hits = [e for e in mine if point_triangle_distance(probe, e.mesh.triangles).max() <= _ON_SURFACE]
-            for e in hits or mine:
-                e.contact = True
-
-    @staticmethod
-    def _object_samples(obj: ObjectSurface, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, float]:
-        """Dense samples of a closed, outward mesh object (points, normals, spacing); else the object's own."""
-        mesh = closed_mesh(obj)
-        if mesh is None:
-            logger.debug("%s: not a closed, outward mesh; collision checks use its points", obj.name)
-            return obj.points, obj.normals, obj.spacing
-        spacing = min(obj.spacing, _OBJECT_SPACING)
-        points, normals = even_samples(mesh, spacing, _MAX_OBJECT_SAMPLES, rng)
-        spacing = float(np.sqrt(mesh.area / len(points)))
-        return np.concatenate([obj.points, points]), np.concatenate([obj.normals, normals]), spacing
-
-    def _pack(self) -> None:
-        """Per-element arrays stacked for vectorised checks, samples grouped by patch.
-
-        Every patch is a contiguous run of rows with its centre first; elements are contiguous
-        runs of patches.
-        """
-        els = self._elements
-        self._frames = np.array([e.frame for e in els])
-        self._contact = np.array([e.contact for e in els])
-        self._hull = np.concatenate([e.hull for e in els])
-        self._hull_start = np.r_[0, np.cumsum([len(e.hull) for e in els])[:-1]]
-        self._hull_element = np.repeat(np.arange(len(els)), [len(e.hull) for e in els])
-        self._sphere = np.array([e.centre for e in els])
-        self._radius = np.array([e.radius for e in els])
-        samples, offsets, starts, sizes, owner, last, rows = [], [], [], [], [], [], 0
-        for i, e in enumerate(els):
-            is_centre = np.zeros(len(e.samples), dtype=bool)
-            is_centre[e.centres] = True
-            order = np.lexsort((~is_centre, e.parent))
-            parent = e.parent[order]
-            first = np.flatnonzero(np.r_[True, parent[1:] != parent[:-1]])
-            samples.append(e.samples[order])
-            offsets.append(e.samples[order] - e.samples[e.centres[parent]])
-            starts.append(rows + first)
-            sizes.append(np.diff(np.r_[first, len(order)]))
-            owner.append(np.full(len(first), i))
-            last.append(int(np.searchsorted(first, np.flatnonzero(order == len(e.samples) - 1)[0], "right") - 1))
-            rows += len(order)
-        self._samples = np.concatenate(samples)
-        self._offsets = np.concatenate(offsets)
-        self._reach = np.linalg.norm(self._offsets, axis=1)
-        self._margin = _PREDICTION_ERROR + _PREDICTION_SLOPE * self._reach
-        self._patch_start = np.concatenate(starts)
-        self._patch_size = np.concatenate(sizes)
-        self._margin[self._patch_start] = 0.0  # the centres
-        self._patch_element = np.concatenate(owner)
-        self._patch_radius = np.maximum.reduceat(self._reach, self._patch_start)
-        self._patch_margin = _PREDICTION_ERROR + _PREDICTION_SLOPE * self._patch_radius
-        self._box_lo = np.minimum.reduceat(self._offsets, self._patch_start)
-        self._box_hi = np.maximum.reduceat(self._offsets, self._patch_start)
-        self._element_patches = np.r_[0, np.cumsum([len(x) for x in starts])]
-        self._last_patch = self._element_patches[:-1] + np.array(last)  # patch of the last vertex
 
     # ------------------------------------------------------------------- check
     def _link_poses(self, T: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -328,12 +284,10 @@ class CollisionChecker:
         out = {}
         for i in elements:
             e = self._elements[i]
-            if not e.closed:
-                continue
-            local = (self._points - poses[i, :3, 3]) @ poses[i, :3, :3]
-            box = np.all((local >= e.mesh.bounds[0]) & (local <= e.mesh.bounds[1]), axis=1)
-            if box.any():
-                out[i] = e.depth_of(local[box], self.tolerance)
+            if e.closed:
+                d = e.object_depth(self._points, poses[i], self.tolerance)
+                if d > 0.0:
+                    out[i] = d
         return out
 
     def _point_distance(self, point: np.ndarray, geometry, pose: coal.Transform3s) -> float:
@@ -365,6 +319,107 @@ class CollisionChecker:
             for probe in self._surface.points[idx[j]]:
                 best = min(best, self._point_distance(probe, self._elements[e].bvh, pose))
         return max(best, 0.0)
+
+
+# ---------------------------------------------------------------------- set-up
+_PREPARED: dict[int, tuple[weakref.ref, list[Element], dict, dict]] = {}
+
+
+def _prepared(gripper: Gripper, links: list[str]) -> tuple[list[Element], dict, dict]:
+    """The gripper's elements (contact ones marked), their arrays stacked for vectorised checks
+    (:func:`_packed`) and the state of the random generator after sampling them; built once
+    per gripper (its parts are treated as immutable) and kept while it lives."""
+    entry = _PREPARED.get(id(gripper))
+    if entry is not None and entry[0]() is gripper:
+        return entry[1], entry[2], entry[3]
+    rng = np.random.default_rng(0)
+    elements = [Element(g, links.index(g.link), rng) for g in gripper.geometries]
+    _mark_contact_elements(elements, gripper)
+    state = rng.bit_generator.state
+    _PREPARED[id(gripper)] = (weakref.ref(gripper), elements, _packed(elements), state)
+    weakref.finalize(gripper, _PREPARED.pop, id(gripper), None)
+    return _PREPARED[id(gripper)][1:]
+
+
+def _mark_contact_elements(elements: list[Element], gripper: Gripper) -> None:
+    for link in dict.fromkeys(s.link for s in gripper.surfaces):
+        points = np.concatenate([s.points for s in gripper.surfaces if s.link == link])
+        mine = [e for e in elements if e.link == link]
+        probe = points[:: max(1, len(points) // 32)].astype(float)
+        hits = [e for e in mine
+                if point_triangle_distance(probe, e.mesh.triangles).max() <= _ON_SURFACE]
+        for e in hits or mine:
+            e.contact = True
+
+
+def _object_surface(obj: ObjectSurface, state: dict) -> TangentPlanes:
+    """The tangent planes of the object's points plus, for a closed, outward mesh object, dense
+    samples of its mesh drawn from a generator in ``state``; built once per mesh, points and
+    state (see :func:`isf.collision_surface.mesh_memo`)."""
+    mesh = closed_mesh(obj)
+    if mesh is None:
+        logger.debug("%s: not a closed, outward mesh; collision checks use its points", obj.name)
+        return TangentPlanes(obj.points, obj.normals, obj.spacing)
+    spacing = min(obj.spacing, _OBJECT_SPACING)
+    key = ("surface", spacing, repr(state), hash(obj.points.tobytes()), hash(obj.normals.tobytes()))
+    memo = mesh_memo(obj)
+    if key not in memo:
+        rng = np.random.default_rng(0)
+        rng.bit_generator.state = state
+        points, normals = even_samples(mesh, spacing, _MAX_OBJECT_SAMPLES, rng)
+        memo[key] = TangentPlanes(np.concatenate([obj.points, points]),
+                                  np.concatenate([obj.normals, normals]),
+                                  float(np.sqrt(mesh.area / len(points))))
+    return memo[key]
+
+
+def _packed(els: list[Element]) -> dict[str, np.ndarray]:
+    """Per-element arrays stacked for vectorised checks (the checker's attributes of these
+    names), samples grouped by patch.
+
+    Every patch is a contiguous run of rows with its centre first; elements are contiguous
+    runs of patches.
+    """
+    out = {"_frames": np.array([e.frame for e in els]),
+           "_contact": np.array([e.contact for e in els]),
+           "_hull": np.concatenate([e.hull for e in els]),
+           "_hull_start": np.r_[0, np.cumsum([len(e.hull) for e in els])[:-1]],
+           "_hull_element": np.repeat(np.arange(len(els)), [len(e.hull) for e in els]),
+           "_sphere": np.array([e.centre for e in els]),
+           "_radius": np.array([e.radius for e in els])}
+    samples, offsets, starts, sizes, owner, last, rows = [], [], [], [], [], [], 0
+    for i, e in enumerate(els):
+        is_centre = np.zeros(len(e.samples), dtype=bool)
+        is_centre[e.centres] = True
+        order = np.lexsort((~is_centre, e.parent))
+        parent = e.parent[order]
+        first = np.flatnonzero(np.r_[True, parent[1:] != parent[:-1]])
+        samples.append(e.samples[order])
+        offsets.append(e.samples[order] - e.samples[e.centres[parent]])
+        starts.append(rows + first)
+        sizes.append(np.diff(np.r_[first, len(order)]))
+        owner.append(np.full(len(first), i))
+        vertex = np.flatnonzero(order == len(e.samples) - 1)[0]
+        last.append(int(np.searchsorted(first, vertex, "right") - 1))
+        rows += len(order)
+    offsets = np.concatenate(offsets)
+    reach = np.linalg.norm(offsets, axis=1)
+    patch_start = np.concatenate(starts)
+    margin = _PREDICTION_ERROR + _PREDICTION_SLOPE * reach
+    margin[patch_start] = 0.0  # the centres
+    patch_radius = np.maximum.reduceat(reach, patch_start)
+    element_patches = np.r_[0, np.cumsum([len(x) for x in starts])]
+    out.update({
+        "_samples": np.concatenate(samples), "_offsets": offsets, "_margin": margin,
+        "_patch_start": patch_start, "_patch_size": np.concatenate(sizes),
+        "_patch_element": np.concatenate(owner), "_patch_radius": patch_radius,
+        "_patch_margin": _PREDICTION_ERROR + _PREDICTION_SLOPE * patch_radius,
+        "_box_lo": np.minimum.reduceat(offsets, patch_start),
+        "_box_hi": np.maximum.reduceat(offsets, patch_start),
+        "_element_patches": element_patches,
+        "_last_patch": element_patches[:-1] + np.array(last),  # patch of the last vertex
+    })
+    return out
 
 
 def _segment_any(mask: np.ndarray, starts: np.ndarray) -> np.ndarray:
@@ -399,6 +454,8 @@ class _Check:
             for i in np.flatnonzero(-h > self.depth):
                 self.depth[i], self.where[i] = -h[i], plane.name
         near = np.all(hi >= c._lo, axis=1) & np.all(lo <= c._hi, axis=1)
+        if c._voxels is not None and near.any():
+            near[near] = ~c._voxels.clear(lo[near] - _VOXEL_MARGIN, hi[near] + _VOXEL_MARGIN)
         # Bounding spheres: the signed distance of the centre less the radius bounds the element's
         # (an element wholly outside by a margin neither penetrates nor needs its samples tested);
         # the distance to the nearest object point plus the radius bounds its clearance.
@@ -439,19 +496,39 @@ class _Check:
         pe = c._patch_element[patch]
         R, t = self.poses[:, :3, :3], self.poses[:, :3, 3]
         centre = np.einsum("pij,pj->pi", R[pe], c._samples[c._patch_start[patch]]) + t[pe]
-        # A patch farther from the object's box than its radius holds no sample inside the
-        # object; one farther than its radius plus the clearance bound none nearer to it.
+        # A patch farther from the object's box than its radius (or whose ball lies in voxels
+        # outside a mesh object) holds no sample inside the object; one farther than its radius
+        # plus the clearance bound none nearer to it.
         gap = np.linalg.norm(np.maximum(np.maximum(c._lo - centre, centre - c._hi), 0.0), axis=1)
         rho = c._patch_radius[patch]
-        need = (self.deep[pe] & (gap <= rho)) | (self.apart[pe] & (gap - rho < self.clearance_bound))
+        outside = gap > rho
+        if c._voxels is not None:
+            test = np.flatnonzero(self.deep[pe] & ~outside)
+            reach = (rho[test] + _VOXEL_MARGIN)[:, None]
+            outside[test] = c._voxels.clear(centre[test] - reach, centre[test] + reach)
+            gap = np.maximum(gap, c._voxels.distance_below(centre))
+        need = self.deep[pe] & ~outside
         need[np.searchsorted(patch, c._last_patch[act])] = True
+        taken = np.flatnonzero(need)
+        sd, normal, nearest, foot = c._surface.evaluate(centre[taken])
+        # patches for the clearance: those that may hold samples nearer than an evaluated centre
+        bound = self.clearance_bound
+        seen = self.apart[pe[taken]]
+        if seen.any():
+            bound = min(bound, float(nearest[seen].min()))
+        more = np.flatnonzero(self.apart[pe] & ~need & (gap - rho < bound))
+        if len(more):
+            need[more] = True
+            extra = c._surface.evaluate(centre[more])
+            order = np.argsort(np.r_[taken, more])
+            sd, normal, nearest, foot = (np.concatenate([a, b])[order]
+                                         for a, b in zip((sd, normal, nearest, foot), extra))
         self.outside_patch = np.zeros(len(self.depth), dtype=bool)  # elements with such a patch
-        self.outside_patch[pe[~need & (gap > rho)]] = True
+        self.outside_patch[pe[~need & outside]] = True
         patch, pe, centre = patch[need], pe[need], centre[need]
         counts = np.bincount(np.searchsorted(act, pe), minlength=len(act))
         element_start = np.r_[0, np.cumsum(counts)[:-1]]  # first patch of each active element
         Rp = R[pe]
-        sd, normal, nearest, foot = c._surface.evaluate(centre)
         m = np.einsum("pij,pi->pj", Rp, normal)  # the gradient in the link frame: R^T n
         # lowest first-order prediction over each patch (its offsets' bounding box) and less the
         # prediction error bound

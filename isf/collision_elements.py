@@ -17,6 +17,7 @@ from __future__ import annotations
 import coal
 import numpy as np
 import trimesh
+from numba import njit
 from scipy.spatial import cKDTree
 
 from .collision_surface import TangentPlanes
@@ -93,6 +94,49 @@ def patches(samples: np.ndarray, area: float, count: int) -> tuple[np.ndarray, n
     return centres, nearest
 
 
+@njit(cache=True, error_model="numpy")
+def _in_box(points, R, t, lo, hi):
+    """The points (M, 3) that ``(p - t) @ R`` maps into the box [lo, hi], so mapped (K, 3)."""
+    out = np.empty((len(points), 3))
+    k = 0
+    for i in range(len(points)):
+        x, y, z = points[i, 0] - t[0], points[i, 1] - t[1], points[i, 2] - t[2]
+        inside = True
+        for d in range(3):
+            out[k, d] = x * R[0, d] + y * R[1, d] + z * R[2, d]
+            inside = inside and lo[d] <= out[k, d] <= hi[d]
+        k += inside
+    return out[:k]
+
+
+@njit(cache=True, error_model="numpy")
+def _above_planes(local, planes):
+    """Largest signed distance of each point (M, 3) to the planes ``[n, n . x]`` (F, 4), (M,)."""
+    out = np.empty(len(local))
+    for i in range(len(local)):
+        sd = -np.inf
+        for f in range(len(planes)):
+            sd = max(sd, local[i, 0] * planes[f, 0] + local[i, 1] * planes[f, 1]
+                     + local[i, 2] * planes[f, 2] - planes[f, 3])
+        out[i] = sd
+    return out
+
+
+@njit(cache=True, error_model="numpy")
+def _at_nearest_node(values, lo, h, points):
+    """``values`` (grid with corner ``lo``, spacing ``h``) at each point's (M, 3) nearest node,
+    (M,); inf off the grid."""
+    out = np.empty(len(points))
+    for i in range(len(points)):
+        out[i] = np.inf
+        a = np.rint((points[i, 0] - lo[0]) / h)
+        b = np.rint((points[i, 1] - lo[1]) / h)
+        c = np.rint((points[i, 2] - lo[2]) / h)
+        if 0 <= a < values.shape[0] and 0 <= b < values.shape[1] and 0 <= c < values.shape[2]:
+            out[i] = values[int(a), int(b), int(c)]
+    return out
+
+
 class Element:
     """One gripper geometry element, precomputed in its link frame.
 
@@ -106,6 +150,7 @@ class Element:
             as ``[n, n . x]`` rows (None when qhull failed).
         centre, radius: bounding sphere of the hull.
         closed: a closed, consistently wound mesh (it has an inside).
+        bounds: its bounding box, (2, 3) as [lower, upper] corners.
         planes: outward face planes (F, 4) of a closed convex element, else None.
         surface: tangent planes of a closed non-convex element's surface, else None.
         contact: some contact-surface point of its link lies on it (set by the checker).
@@ -116,6 +161,7 @@ class Element:
         mesh = trimesh.Trimesh(np.asarray(geom.vertices, float), np.asarray(geom.faces, np.int64),
                                process=True, validate=False)
         self.mesh = mesh
+        self.bounds = np.array(mesh.bounds, dtype=float)
         self.hull_planes = None
         try:
             with np.errstate(invalid="ignore", divide="ignore"):  # flat sheets: zero hull volume
@@ -146,6 +192,16 @@ class Element:
         self.contact = False
         self._field: SignedDistanceGrid | None = None  # built on first need
 
+    def object_depth(self, points: np.ndarray, T_object_element: np.ndarray,
+                     tolerance: float) -> float:
+        """Deepest of the object points (M, 3), object frame, inside this closed element posed at
+        ``T_object_element`` (4, 4), metres (0 if none): :meth:`depth_of` of those in its box."""
+        if not self.closed:
+            return 0.0
+        R, t = T_object_element[:3, :3], T_object_element[:3, 3]
+        local = _in_box(points, R, t, self.bounds[0], self.bounds[1])
+        return self.depth_of(local, tolerance)
+
     def depth_of(self, local: np.ndarray, tolerance: float) -> float:
         """Deepest of the points (M, 3), link frame, inside this closed element, metres (0 if none).
 
@@ -157,13 +213,12 @@ class Element:
         if not self.closed or len(local) == 0:
             return 0.0
         if self.planes is not None:
-            sd = (local @ self.planes[:, :3].T - self.planes[:, 3]).max(axis=1)
-            return float(max(0.0, -sd.min()))
+            return float(max(0.0, -_above_planes(local, self.planes).min()))
         if self.hull_planes is not None:
-            local = local[(local @ self.hull_planes[:, :3].T - self.hull_planes[:, 3]).max(axis=1) < 0]
+            local = local[_above_planes(local, self.hull_planes) < 0]
         if len(local) > _FIELD_FROM:  # screen: the deepest-looking points and any that may be too deep
             if self._field is None:
-                self._field = SignedDistanceGrid(self.surface, self.mesh.bounds)
+                self._field = SignedDistanceGrid(self.surface, self.bounds)
             value = self._field.interpolate(local)
             maybe = np.flatnonzero(value < self._field.h)
             top = maybe[np.argsort(value[maybe])[:_FIELD_DEEPEST]]
@@ -191,9 +246,5 @@ class SignedDistanceGrid:
     def interpolate(self, points: np.ndarray) -> np.ndarray:
         """Signed distance of points (M, 3) at their nearest grid node, metres (M,); inf outside
         the grid. Off by at most ``h`` (half a cell diagonal, for a 1-Lipschitz distance)."""
-        cell = np.rint((points - self.lo) / self.h).astype(np.int64)
-        inside_grid = np.all((cell >= 0) & (cell < self.shape), axis=1)
-        out = np.full(len(points), np.inf)
-        c = cell[inside_grid]
-        out[inside_grid] = self.values[c[:, 0], c[:, 1], c[:, 2]]
-        return out
+        points = np.ascontiguousarray(points, dtype=np.float64)
+        return _at_nearest_node(self.values, self.lo, self.h, points)

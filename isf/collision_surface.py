@@ -11,10 +11,29 @@ import weakref
 
 import numpy as np
 import trimesh
+from numba import njit
 
 from .nearest import NearestPoints
 
 NEIGHBOURS = 6  # tangent planes of the nearest surface points a point must lie below to be inside
+
+
+@njit(cache=True, error_model="numpy")
+def _highest_planes(query, points, normals, idx):
+    """Per query point (M, 3): the largest height ``(p - o_k) . n_k`` over its neighbours
+    ``idx`` (M, K) (the first of equal ones), (M,), and the index of that neighbour, (M,)."""
+    m, k = idx.shape
+    height, best = np.empty(m), np.empty(m, np.int64)
+    for q in range(m):
+        height[q], best[q] = -np.inf, idx[q, 0]
+        for j in range(k):
+            o = idx[q, j]
+            h = ((query[q, 0] - points[o, 0]) * normals[o, 0]
+                 + (query[q, 1] - points[o, 1]) * normals[o, 1]
+                 + (query[q, 2] - points[o, 2]) * normals[o, 2])
+            if h > height[q]:
+                height[q], best[q] = h, o
+    return height, best
 
 
 class TangentPlanes:
@@ -35,12 +54,10 @@ class TangentPlanes:
         if len(query) == 0:
             return np.empty(0), np.empty((0, 3)), np.empty(0), np.empty((0, 3))
         k = min(NEIGHBOURS, len(self.points))
+        query = np.ascontiguousarray(query, dtype=np.float64)
         dist, idx = self.tree.query_k(query, k)
-        normals = self.normals[idx]
-        heights = np.einsum("mki,mki->mk", query[:, None, :] - self.points[idx], normals)
-        best = heights.argmax(axis=1)
-        rows = np.arange(len(query))
-        return heights[rows, best], normals[rows, best], dist[:, 0], self.points[idx[:, 0]]
+        height, best = _highest_planes(query, self.points, self.normals, idx)
+        return height, self.normals[best], dist[:, 0], self.points[idx[:, 0]]
 
     def signed_distance(self, query: np.ndarray) -> np.ndarray:
         """Estimated signed distance of points (M, 3), metres (M,), negative inside."""

@@ -23,12 +23,14 @@ import numpy as np
 import pinocchio as pin
 import trimesh
 
+from .collision_elements import Element, SignedDistanceGrid
+from .collision_surface import TangentPlanes
+from .collision_voxels import SurfaceVoxels
 from .convex_elements import ConvexElements
 from .correspondence import match
 from .dense_qp import solve_dense_qp
 from .fit import fit_many
-from .gripper import ContactSurface, Gripper
-from .nearest import NearestPoints
+from .gripper import ContactSurface, Gripper, LinkGeometry
 from .object_surface import ObjectSurface
 
 __all__ = ["warm_up"]
@@ -52,8 +54,9 @@ def warm_up() -> float:
 
     It fits a one-joint gripper onto a small plane (the engine's own calls, so its own
     argument types), once more with IPFO pausing for Python (as it does for OSQP finger steps
-    and for joints without compiled kinematics), asks for k nearest points as the collision
-    checks do, and runs the repair's convex-element test and a small repair QP.
+    and for joints without compiled kinematics), asks for nearest points as the collision
+    checks and the repair do, runs the repair's convex-element test and a small repair QP,
+    and the collision checks' voxel and element tests.
     """
     start = time.perf_counter()
     grid = np.stack(np.meshgrid(*[np.linspace(-0.02, 0.02, 41)] * 2), axis=-1).reshape(-1, 2)
@@ -68,9 +71,17 @@ def warm_up() -> float:
     plane.nearest(plane.points[:2])  # as the collision repair asks
     match(plane, plane.points[:8] + [0.0, 0.0, 0.001], outlier_factor=3.0, outlier_floor=0.005,
           reject_duplicates=True)
-    NearestPoints(plane.points).query_k(plane.points[:2], 6)  # as the collision checks ask
+    planes = TangentPlanes(plane.points, plane.normals, 0.001)  # as the collision checks ask
+    bounds = np.array([[0.04, -0.01, -0.01], [0.06, 0.01, 0.01]])
+    SignedDistanceGrid(planes, bounds, 64).interpolate(plane.points[:2])
     box = trimesh.creation.box(extents=(0.01, 0.01, 0.01))
     ConvexElements([(box.vertices, box.faces)], np.zeros(1), np.zeros(1)).rows(
         np.eye(4), np.eye(3)[None], np.zeros((1, 3)), plane.points, 0.003)
     solve_dense_qp(np.eye(2), np.ones(2), np.ones((1, 2)), np.zeros(1), np.ones(1))
+    voxels = SurfaceVoxels(box.vertices, box.faces)  # the collision checks' voxels and elements
+    voxels.clear(box.vertices, box.vertices), voxels.distance_below(box.vertices)
+    element = Element(LinkGeometry("link", "box", box.vertices, box.faces), 0,
+                      np.random.default_rng(0))
+    T[:3, 3] = [0.05, 0.0, 0.0]  # some plane points inside the box
+    element.object_depth(plane.points, T, 0.002)
     return time.perf_counter() - start
