@@ -1,0 +1,123 @@
+"""The compiled lockstep engine: its nearest-point cache, one round against the Python pieces,
+and its pauses for Python."""
+
+import numpy as np
+import pytest
+
+import isf
+from _builders import random_rotation
+from isf import lockstep_kernel as kernel
+from isf.config import FitConfig
+from isf.correspondence import match_many
+from isf.finger_step import FingerStepQP
+from isf.ipfo import PairBatch, ipfo
+from isf.nearest import NearestPoints, search_scratch
+from isf.se3 import make_transform
+from isf.segments import Segments
+
+
+def _brute_force(points, query):
+    d2 = ((points - query) ** 2).sum(axis=1)
+    return int(d2.argmin()), float(d2.min())  # argmin: the lowest index among ties
+
+
+@pytest.mark.parametrize("n_points", [3, 400])
+def test_the_nearest_point_cache_answers_what_a_full_search_answers(n_points):
+    """Random walks of contact points (small steps and jumps) over a noisy surface with
+    duplicated points: every answer, from the cache or from a refill, is the brute-force one."""
+    rng = np.random.default_rng(n_points)
+    xy = rng.uniform(-0.01, 0.01, (n_points, 2))
+    points = np.c_[xy, 0.0005 * rng.normal(size=n_points)]
+    points[: n_points // 4] = points[n_points // 4: 2 * (n_points // 4)]  # exact duplicates
+    tree = NearestPoints(points).tree
+    n_walkers, k = 20, kernel.CANDIDATES
+    x0, radius = np.zeros((n_walkers, 3)), np.zeros(n_walkers)
+    candidates, valid = np.zeros((n_walkers, k), np.int64), np.zeros(n_walkers, np.bool_)
+    best_d2, best, scratch = np.empty(k), np.empty(k, np.int64), search_scratch()
+    position = np.c_[rng.uniform(-0.01, 0.01, (n_walkers, 2)), np.full(n_walkers, 0.002)]
+    hits = 0
+    for step in range(300):
+        jump = rng.random(n_walkers) < 0.05
+        position += np.where(jump[:, None], 0.004, 0.00005) * rng.normal(size=position.shape)
+        for g, (x, y, z) in enumerate(position):
+            index, d2, hit = kernel.cached_nearest(x, y, z, g, x0, radius, candidates, valid, points)
+            if not hit:
+                index, d2 = kernel.refill(x, y, z, g, x0, radius, candidates, valid, tree, scratch, best_d2, best)
+            hits += hit
+            assert (index, d2) == _brute_force(points, position[g]), (step, g)
+    assert hits > 0.5 * 300 * n_walkers  # the cache did answer most of them
+
+
+@pytest.fixture(scope="module")
+def cylinder():
+    return isf.open_object("shape:cylinder")
+
+
+def _starts(rng, gripper, n):
+    """Grasp-like starts: the gripper above the cylinder's axis, turned and moved a little."""
+    T = make_transform(np.eye(3), [0.0, 0.0, -0.06]) if gripper.name == "paper-parallel" else \
+        make_transform(np.eye(3), [0.0, 0.0, -0.05])
+    return [make_transform(random_rotation(rng, 0.3), rng.normal(scale=0.003, size=3)) @ T for _ in range(n)]
+
+
+@pytest.mark.parametrize("name", ["paper-parallel", "three-finger"])
+def test_one_round_equals_the_correspondences_and_ipfo_of_the_python_pieces(name, cylinder):
+    """One ISF iteration of the engine (one level, one iteration) lands where match_many's pairs
+    and isf.ipfo's alternations (the pair-by-pair correspondence filters and the IPFO driver) do."""
+    gripper = isf.load_gripper(name)
+    config = FitConfig(levels=1, max_iterations=1)
+    rng = np.random.default_rng(1)
+    starts = _starts(rng, gripper, 4)
+    results = isf.fit_many(gripper, cylinder, np.stack(starts), config=config)
+    q0 = gripper.q_initial
+    for T0, result in zip(starts, results):
+        assert result.iterations == 1
+        points, normals = gripper.contact_points(q0)
+        points, normals = points @ T0[:3, :3].T + T0[:3, 3], normals @ T0[:3, :3].T
+        fit = Segments.single(len(points))
+        pairs = match_many(cylinder, points, fit, outlier_factor=config.outlier_factor,
+                           outlier_floor=config.outlier_floor, reject_duplicates=config.reject_duplicates,
+                           normals=normals, max_normal_angle=config.max_normal_angle,
+                           outlier_groups=Segments.runs(gripper.point_surface))
+        assert result.history[0].n_pairs == len(pairs.source)
+        batch = PairBatch(gripper, Segments.single(len(pairs.source)), pairs.source,
+                          cylinder.points[pairs.target], cylinder.normals[pairs.target])
+        expected = ipfo(batch, T0[None], q0[None], [FingerStepQP(gripper.n_joints, config.finger_damping)],
+                        config)
+        np.testing.assert_allclose(result.T_object_gripper, expected.T_object_gripper[0], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(result.q, expected.q[0], rtol=0, atol=1e-12)
+        assert result.history[0].ipfo_errors == pytest.approx(expected.errors[0], rel=1e-9)
+
+
+def test_pausing_for_python_changes_no_number(cylinder, monkeypatch):
+    """Fits whose IPFO pauses for Pinocchio in every alternation (joints without compiled
+    kinematics) run the rounds through Python and end exactly where the compiled rounds do."""
+    hand = isf.load_gripper("three-finger")
+    starts = np.stack(_starts(np.random.default_rng(2), hand, 6))
+    compiled = isf.fit_many(hand, cylinder, starts)
+    monkeypatch.setattr(hand, "_chain", None)
+    paused = isf.fit_many(hand, cylinder, starts)
+    assert max(r.iterations for r in compiled) > 5
+    for a, b in zip(compiled, paused):
+        np.testing.assert_array_equal(a.T_object_gripper, b.T_object_gripper)
+        np.testing.assert_array_equal(a.q, b.q)
+        assert a.iterations == b.iterations and a.status == b.status
+        assert [r.ipfo_errors for r in a.history] == [r.ipfo_errors for r in b.history]
+
+
+def test_slots_are_reused_and_grown():
+    """Fits added while others run take freed slots, or new ones; each ends as it would alone."""
+    gripper = isf.load_gripper("paper-parallel")
+    obj = isf.open_object("shape:cylinder")
+    starts = _starts(np.random.default_rng(3), gripper, 20)
+    alone = isf.fit_many(gripper, obj, np.stack(starts))
+    fitter = isf.lockstep.LockstepFitter(gripper, obj)
+    results, added = {}, 0
+    while len(results) < len(starts):
+        while added < len(starts) and fitter.n_active < 3 + added % 11:
+            fitter.add(added, starts[added])
+            added += 1
+        results.update(fitter.advance())
+    for k, r in enumerate(alone):
+        np.testing.assert_array_equal(results[k].T_object_gripper, r.T_object_gripper)
+        assert results[k].iterations == r.iterations
