@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import abc
 import math
+import weakref
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, ClassVar
@@ -214,13 +215,22 @@ def random_rotation(rng: np.random.Generator, size: int | None = None) -> np.nda
 
 
 def grasp_centre(gripper: Gripper) -> np.ndarray:
-    """Mean of the gripper's contact points at ``q_initial``, gripper frame.
+    """Mean of the gripper's contact points at ``q_initial``, gripper frame (computed once per
+    gripper).
 
     Returns:
-        the grasp centre, shape (3,), metres.
+        the grasp centre, shape (3,), metres (a read-only array).
     """
-    points, _ = gripper.contact_points(gripper.q_initial)
-    return points.mean(axis=0)
+    centre = _GRASP_CENTRES.get(gripper)
+    if centre is None:
+        points, _ = gripper.contact_points(gripper.q_initial)
+        centre = _GRASP_CENTRES[gripper] = points.mean(axis=0)
+        centre.flags.writeable = False
+    return centre
+
+
+_GRASP_CENTRES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+""":func:`grasp_centre` of each gripper object alive."""
 
 
 def place_gripper(
