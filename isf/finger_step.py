@@ -68,8 +68,10 @@ class FingerStepQP:
         return self._solver
 
     def reset(self) -> None:
-        """Forget the warm start (before the problem serves another fit)."""
+        """Forget the warm start and OSQP's state (before the problem serves another fit, so
+        that a fit's steps do not depend on the fits served before it)."""
         self._x = np.zeros(self.n)
+        self._solver = None
 
     def solve(self, A: np.ndarray, b: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
         """Minimise ``||A dq - b||^2 + lambda ||dq||^2`` subject to ``lower <= dq <= upper``.

@@ -121,3 +121,21 @@ def test_slots_are_reused_and_grown():
     for k, r in enumerate(alone):
         np.testing.assert_array_equal(results[k].T_object_gripper, r.T_object_gripper)
         assert results[k].iterations == r.iterations
+
+
+def test_fits_solved_by_osqp_do_not_depend_on_the_fits_before_them(cylinder, monkeypatch):
+    """With every finger step sent to OSQP (no step certified by the active set), fits run
+    together, one after another in reused slots, and alone end in the same place."""
+    monkeypatch.setattr(isf.box_qp, "MAX_ROUNDS", 0)
+    hand = isf.load_gripper("three-finger")
+    starts = _starts(np.random.default_rng(4), hand, 5)
+    together = isf.fit_many(hand, cylinder, np.stack(starts))
+    fitter = isf.lockstep.LockstepFitter(hand, cylinder)
+    for k, T in enumerate(starts):  # one slot, reused by every fit in turn
+        fitter.add(k, T)
+        while fitter.n_active:
+            (key, result), = fitter.advance()
+        alone = isf.fit(hand, cylinder, T)
+        for other in (together[k], alone):
+            np.testing.assert_array_equal(result.T_object_gripper, other.T_object_gripper)
+            np.testing.assert_array_equal(result.q, other.q)
