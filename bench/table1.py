@@ -7,9 +7,9 @@ gripper range": uniformly, so that the middle of its three bounding-box extents 
 paper gripper opens 10-30 mm), and is sampled to at most 2000 points (the paper's objects had
 740-3971 vertices). Sampler: the regret bandit with the paper's uniformly random orientations.
 
-Every object runs once per batch size of ``--batch-sizes`` (default: ``isf.plan``'s default and
-1, the paper's strictly sequential loop, which serves as the reference for "results not
-worse"), seeds 0, 1, ... (the same seeds for every batch size). Reported per object and batch
+Every object runs once per batch size of ``--batch-sizes`` (default: 8 samples in lockstep and
+1, the paper's strictly sequential loop and ``isf.plan``'s default, which serves as the
+reference for "results not worse"), seeds 0, 1, ... (the same seeds for every batch size). Reported per object and batch
 size: ``t_total`` (``PlanStats.total_time``), the process CPU time, the time per collision-free
 grasp, the collision-free count and the mean fitting error of the collision-free grasps
 (``FitResult.mean_distance``); medians over ``--repeats`` runs cut by ``--budget`` seconds per
@@ -154,8 +154,7 @@ def main() -> None:
                         help="comma-separated benchmark names (default: "
                              + ",".join(DEFAULT_OBJECTS) + ")")
     parser.add_argument("--batch-sizes", default=None,
-                        help="comma-separated batch sizes of isf.plan (default: isf.plan's "
-                             f"default and 1, i.e. {_common.default_batch_size()},1); the LAST "
+                        help="comma-separated batch sizes of isf.plan (default: 8,1); the LAST "
                              "one is the reference the others are compared with")
     args = parser.parse_args()
     names = args.objects.split(",") if args.objects else list(DEFAULT_OBJECTS)
@@ -164,7 +163,7 @@ def main() -> None:
         args.samples, args.repeats = min(args.samples, QUICK_SAMPLES), min(args.repeats, 1)
     try:
         batches = ([int(b) for b in args.batch_sizes.split(",")] if args.batch_sizes
-                   else [_common.default_batch_size(), 1])
+                   else [8, 1])
     except ValueError:
         parser.error(f"--batch-sizes must be comma-separated integers, got {args.batch_sizes!r}")
     batches = list(dict.fromkeys(batches))

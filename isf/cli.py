@@ -42,7 +42,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--sampler", "-s", default="regret", help="sampler name (default regret; see 'isf samplers')")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--batch-size", type=int, default=BATCH_SIZE, metavar="B",
-                   help=f"samples fitted at once in lockstep (default {BATCH_SIZE}; 1 = the paper's sequential loop)")
+                   help=f"samples fitted at once in lockstep (default {BATCH_SIZE}: the paper's sequential loop)")
     p.add_argument("--units", choices=("m", "cm", "mm"), default="m", help="units of the object file (default m)")
     p.add_argument("--scale", type=float, default=1.0, help="extra scale factor for the object")
     p.add_argument("--table", type=float, default=None, metavar="Z",
@@ -119,6 +119,7 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     from .object_specs import open_object
     from .plan_json import write_plan_json
     from .planner import plan
+    from .samplers import get_sampler
 
     out = Path(args.out)
     if not out.parent.is_dir():
@@ -128,10 +129,11 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     gripper = load_gripper(args.gripper)
     obj = open_object(args.object_spec, units=args.units, scale=args.scale)
     obstacles = [Plane.table(args.table)] if args.table is not None else []
+    sampler = get_sampler(args.sampler)  # a bad name fails before the kernels load
     _compile_kernels(quiet=args.quiet)
     show = not args.quiet and sys.stderr.isatty()
     progress = _ProgressBar(sys.stderr) if show else None
-    result = plan(gripper, obj, samples=args.samples, sampler=args.sampler, seed=args.seed,
+    result = plan(gripper, obj, samples=args.samples, sampler=sampler, seed=args.seed,
                   batch_size=args.batch_size,
                   obstacles=obstacles, progress=progress)
     if progress:
@@ -148,10 +150,11 @@ def _cmd_plan(args: argparse.Namespace) -> int:
 
 def _compile_kernels(quiet: bool) -> None:
     """Compile (or load) the kernels before planning, so the plan's times leave them out; when
-    that takes more than a second (a first run), say what is happening."""
+    that takes more than a few seconds (a first run: loading compiled kernels takes about one),
+    say what is happening."""
     from .compiled import warm_up
 
-    notice = threading.Timer(1.0, lambda: print(
+    notice = threading.Timer(_COMPILE_NOTICE_AFTER, lambda: print(
         "isf: compiling its numerical kernels for this machine (once after installing or "
         "upgrading isf: under a minute) ...", file=sys.stderr, flush=True))
     if not quiet:
@@ -160,6 +163,11 @@ def _compile_kernels(quiet: bool) -> None:
         warm_up()
     finally:
         notice.cancel()
+
+
+_COMPILE_NOTICE_AFTER = 4.0
+"""Seconds of warm-up after which ``isf plan`` says it is compiling (loading the compiled
+kernels takes about a second; compiling them, tens of seconds)."""
 
 
 def _cmd_grippers(args: argparse.Namespace) -> int:

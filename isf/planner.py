@@ -5,13 +5,15 @@ gripper for collisions (:class:`isf.collision.CollisionChecker`) and reports the
 outcome back to the sampler, which uses it to guide the next proposal (the regret
 bandit does; the uniform sampler ignores it).
 
-Up to ``batch_size`` samples are fitted at once, in lockstep
-(:class:`isf.lockstep.LockstepFitter`): each keeps its own ISF state and stop rule, and
-a finished sample is checked, reported to the sampler and replaced by a new proposal
-straight away, so the sampler learns from every outcome with a delay of at most
+By default the samples run one after another, as in the paper's loop: propose, fit,
+check, observe. With ``batch_size > 1`` up to ``batch_size`` samples are fitted at once,
+in lockstep (:class:`isf.lockstep.LockstepFitter`): each keeps its own ISF state and stop
+rule, and a finished sample is checked, reported to the sampler and replaced by a new
+proposal straight away, so the sampler learns from every outcome with a delay of at most
 ``batch_size - 1`` samples. A sampler may hold fewer in flight
-(:meth:`isf.Sampler.in_flight_limit`; the regret sampler does while it explores).
-``batch_size=1`` is the paper's strictly sequential loop.
+(:meth:`isf.Sampler.in_flight_limit`; the regret sampler does while it explores). The ISF
+rounds are compiled (:mod:`isf.lockstep_kernel`), so a batch no longer saves time; it is
+there for samplers that propose in batches.
 
 A fitted grasp that collides is repaired once (``repair_collisions``, on by default;
 :mod:`isf.clearance`): the links that penetrate are pushed out while the contact surfaces
@@ -44,8 +46,9 @@ from .working_surface import resolve_spacing, working_surface
 
 __all__ = ["Grasp", "PlanResult", "PlanStats", "plan"]
 
-BATCH_SIZE = 8
-"""Default number of samples fitted at once by :func:`plan` (see the module docstring)."""
+BATCH_SIZE = 1
+"""Default number of samples fitted at once by :func:`plan`: one, the paper's sequential loop
+(see the module docstring)."""
 
 NO_CONTACT_ERROR = 0.05
 """Error reported to samplers for a fit where some contact surface does not touch the object, metres."""
