@@ -74,7 +74,8 @@ import numpy as np
 import pinocchio as pin
 
 from .collision_elements import Element, bvh, even_samples, point_triangle_distance
-from .collision_surface import TangentPlanes, closed_mesh, mesh_memo
+from .collision_kernel import check_elements
+from .collision_surface import NEIGHBOURS, TangentPlanes, closed_mesh, mesh_memo
 from .collision_voxels import SurfaceVoxels
 from .exceptions import GripperDescriptionError, InvalidInputError
 from .gripper import Gripper
@@ -91,14 +92,8 @@ _ON_SURFACE = 1e-6  # a contact point this close to an element lies on it, m
 # within _PREDICTION_ERROR + _PREDICTION_SLOPE * (distance to the centre).
 _PREDICTION_ERROR = 1e-4  # m
 _PREDICTION_SLOPE = 0.5
-_DEEPEST_CANDIDATES = 8  # samples evaluated exactly to find an element's deepest one
-_CLEARANCE_CANDIDATES = 48  # nearest-looking samples whose object distance is measured
-_CLEARANCE_EXACT = 3  # of those, how many get the exact distance to a mesh object (coal)
-_DEPTH_RESOLUTION = 5e-5  # deeper-looking samples than the deepest evaluated get evaluated, m
-_CLEARANCE_PATCHES = 2  # patches nearest the object whose samples are candidates for clearance
+_CLEARANCE_EXACT = 3  # of the clearance candidates, how many get the exact distance to a mesh object (coal)
 _REVERSE_PROBES = 4  # object samples whose distance to the nearest-looking elements is measured
-_CULL_MARGIN = 5e-4  # an element whose bounding sphere is this far outside the object is outside, m
-_VOXEL_MARGIN = 2e-3  # a box this far inside voxels outside a mesh object is outside it, m
 
 
 def object_bvh(obj: ObjectSurface) -> coal.BVHModelOBBRSS:
@@ -233,6 +228,19 @@ class CollisionChecker:
         # Distance from the object's surface to its nearest sample, at most (a generous guess:
         # random samples leave gaps a few spacings wide; 0 for a bare point cloud).
         self._cover = 3.0 * self._surface.spacing if obj.is_mesh else 0.0
+        voxels = self._voxels
+        self._kernel_args = (
+            (np.array([p.normal for p in self.obstacles]).reshape(-1, 3),
+             np.array([p.offset for p in self.obstacles], dtype=float)),
+            tuple(packed[name] for name in _ELEMENT_ARRAYS),
+            tuple(packed[name] for name in _PATCH_ARRAYS),
+            (self._surface.points, self._surface.normals, self._surface.tree.tree, self._points,
+             self._lo, self._hi, self._cover, min(NEIGHBOURS, len(self._surface.points))),
+            (False, np.zeros((1, 1, 1), np.int64), np.zeros((1, 1, 1), np.int32), np.zeros(3), 1.0)
+            if voxels is None else (True, voxels.table, voxels.steps, voxels.lo, voxels.size))
+        self.estimates = 0
+        """Exact tangent-plane estimates of the object's surface made by the checks so far (a
+        cost diagnostic)."""
         self._point = coal.Sphere(0.0)
         self._identity = coal.Transform3s()
         self._distance_request = coal.DistanceRequest()
@@ -263,7 +271,7 @@ class CollisionChecker:
             InvalidInputError: ``T_object_gripper`` is not a rigid transform or ``q`` has the wrong size.
         """
         T, q = self._check_inputs(T_object_gripper, q)
-        return _Check(self, self._link_poses(T, q)[self._frames]).report()
+        return self._report(self._link_poses(T, q)[self._frames])
 
     def check_many(self, T_object_gripper: np.ndarray, q: np.ndarray) -> list[CollisionReport]:
         """:meth:`check` of B poses (B, 4, 4) with joints (B, n_joints), in order.
@@ -278,45 +286,68 @@ class CollisionChecker:
                                     f"{T.shape} and {q.shape}; stack one pose and joint vector per grasp")
         return [self.check(t, j) for t, j in zip(T, q)]
 
-    # ---------------------------------------------------- helpers of _Check
-    def _object_inside(self, elements: list[int], poses: np.ndarray) -> dict[int, float]:
-        """Deepest object point inside each of the closed ``elements`` posed at ``poses`` (E, 4, 4)."""
-        out = {}
-        for i in elements:
+    # ------------------------------------------------------------ the check itself
+    def _report(self, poses: np.ndarray) -> CollisionReport:
+        """The check of the elements posed at ``poses`` (E, 4, 4) (see the module docs): the
+        compiled body (:func:`isf.collision_kernel.check_elements`), then the object points
+        inside the non-convex closed elements, each element's depth and the exact clearance."""
+        depth, where, clearance, act, summary, candidates, owner, guess, estimates = check_elements(
+            poses, self.tolerance, *self._kernel_args)
+        self.estimates += estimates
+        for k in np.flatnonzero(summary[:, 0]):  # the elements whose samples may lie inside
+            i = int(act[k])
             e = self._elements[i]
-            if e.closed:
-                d = e.object_depth(self._points, poses[i], self.tolerance)
-                if d > 0.0:
-                    out[i] = d
-        return out
+            _, inside_any, outside_any, deepest, last, inner = summary[k]
+            if e.surface is not None:  # closed, non-convex
+                inner = e.object_depth(self._points, poses[i], self.tolerance)
+            if inside_any and not outside_any and inner == 0.0:  # wholly inside: a vertex tells
+                d = max(0.0, -float(last))
+            else:
+                d = max(float(deepest), float(inner))
+            if d > depth[i]:
+                depth[i], where[i] = d, len(self.obstacles)
+            if d > 0.0 and not self._contact[i]:
+                clearance = 0.0
+        if clearance > 0.0 and len(candidates):
+            clearance = min(clearance, self._clearance_of(candidates, owner, guess, poses))
+        colliding = [self._elements[i].link for i in np.flatnonzero(depth > self.tolerance)]
+        worst = int(np.argmax(depth))
+        free = not colliding
+        names = [p.name for p in self.obstacles] + ["object"]
+        return CollisionReport(
+            collision_free=free, penetration=float(depth[worst]), clearance=float(clearance),
+            colliding_links=tuple(dict.fromkeys(colliding)),
+            obstacle=None if free else names[where[worst]],
+        )
 
     def _point_distance(self, point: np.ndarray, geometry, pose: coal.Transform3s) -> float:
         """Exact distance from a point (3,) to a coal geometry posed at ``pose``, metres."""
         return coal.distance(self._point, coal.Transform3s(np.eye(3), point), geometry, pose,
                              self._distance_request, coal.DistanceResult())
 
-    def _clearance_of(self, points: np.ndarray, owner: np.ndarray, poses: np.ndarray) -> float:
+    def _clearance_of(self, points: np.ndarray, owner: np.ndarray, guess: np.ndarray,
+                      poses: np.ndarray) -> float:
         """Smallest distance between the elements and the object, metres, measured from samples
-        ``points`` (M, 3) of elements ``owner`` (M,) that lie nearest the object.
+        ``points`` (M, 3) of elements ``owner`` (M,) that lie nearest the object (``guess``: an
+        object point near each, to speed the search).
 
         Both ways, each an exact point distance: from the few samples nearest the object's samples
         to the object's mesh (coal; to the nearest object sample for a point cloud), and from the
         object samples nearest the best of those to the triangles of its element and of the
         runner-up element.
         """
-        k = min(_REVERSE_PROBES, len(self._surface.points))
-        nearest, idx = self._surface.tree.query_k(points, k)
-        nearest = nearest[:, 0]
+        nearest, _ = self._surface.tree.query(points, guess)
         measured = nearest.copy()
         if self._mesh is not None:
             for j in np.argsort(nearest)[:_CLEARANCE_EXACT]:
                 measured[j] = self._point_distance(points[j], self._mesh, self._identity)
         order = np.argsort(measured)
         best = float(measured[order[0]])
+        k = min(_REVERSE_PROBES, len(self._surface.points))
         for j in order[np.unique(owner[order], return_index=True)[1]][:2]:
             e = int(owner[j])
             pose = coal.Transform3s(poses[e, :3, :3], poses[e, :3, 3])
-            for probe in self._surface.points[idx[j]]:
+            for probe in self._surface.points[self._surface.tree.query_k(points[j], k)[1][0]]:
                 best = min(best, self._point_distance(probe, self._elements[e].bvh, pose))
         return max(best, 0.0)
 
@@ -373,22 +404,32 @@ def _object_surface(obj: ObjectSurface, state: dict) -> TangentPlanes:
     return memo[key]
 
 
+_ELEMENT_ARRAYS = ("_hull", "_hull_start", "_sphere", "_radius", "_contact", "_kind", "_bounds",
+                   "_planes", "_plane_start", "_element_patches", "_last_patch")
+_PATCH_ARRAYS = ("_samples", "_offsets", "_margin", "_patch_start", "_patch_size", "_patch_radius",
+                 "_patch_margin", "_box_lo", "_box_hi")
+
+
 def _packed(els: list[Element]) -> dict[str, np.ndarray]:
-    """Per-element arrays stacked for vectorised checks (the checker's attributes of these
-    names), samples grouped by patch.
+    """Per-element arrays stacked for the compiled checks (the checker's attributes of these
+    names; :func:`isf.collision_kernel.check_elements` describes them), samples grouped by patch.
 
     Every patch is a contiguous run of rows with its centre first; elements are contiguous
     runs of patches.
     """
+    planes = [e.planes if e.planes is not None else np.empty((0, 4)) for e in els]
     out = {"_frames": np.array([e.frame for e in els]),
-           "_contact": np.array([e.contact for e in els]),
+           "_contact": np.array([e.contact for e in els], dtype=bool),
+           "_kind": np.array([0 if not e.closed else 1 if e.planes is not None else 2 for e in els]),
+           "_bounds": np.array([e.bounds for e in els]),
+           "_planes": np.ascontiguousarray(np.concatenate(planes), dtype=float),
+           "_plane_start": np.r_[0, np.cumsum([len(x) for x in planes])],
            "_hull": np.concatenate([e.hull for e in els]),
-           "_hull_start": np.r_[0, np.cumsum([len(e.hull) for e in els])[:-1]],
-           "_hull_element": np.repeat(np.arange(len(els)), [len(e.hull) for e in els]),
+           "_hull_start": np.r_[0, np.cumsum([len(e.hull) for e in els])],
            "_sphere": np.array([e.centre for e in els]),
            "_radius": np.array([e.radius for e in els])}
-    samples, offsets, starts, sizes, owner, last, rows = [], [], [], [], [], [], 0
-    for i, e in enumerate(els):
+    samples, offsets, starts, sizes, last, rows = [], [], [], [], [], 0
+    for e in els:
         is_centre = np.zeros(len(e.samples), dtype=bool)
         is_centre[e.centres] = True
         order = np.lexsort((~is_centre, e.parent))
@@ -398,7 +439,6 @@ def _packed(els: list[Element]) -> dict[str, np.ndarray]:
         offsets.append(e.samples[order] - e.samples[e.centres[parent]])
         starts.append(rows + first)
         sizes.append(np.diff(np.r_[first, len(order)]))
-        owner.append(np.full(len(first), i))
         vertex = np.flatnonzero(order == len(e.samples) - 1)[0]
         last.append(int(np.searchsorted(first, vertex, "right") - 1))
         rows += len(order)
@@ -412,7 +452,7 @@ def _packed(els: list[Element]) -> dict[str, np.ndarray]:
     out.update({
         "_samples": np.concatenate(samples), "_offsets": offsets, "_margin": margin,
         "_patch_start": patch_start, "_patch_size": np.concatenate(sizes),
-        "_patch_element": np.concatenate(owner), "_patch_radius": patch_radius,
+        "_patch_radius": patch_radius,
         "_patch_margin": _PREDICTION_ERROR + _PREDICTION_SLOPE * patch_radius,
         "_box_lo": np.minimum.reduceat(offsets, patch_start),
         "_box_hi": np.maximum.reduceat(offsets, patch_start),
@@ -420,249 +460,3 @@ def _packed(els: list[Element]) -> dict[str, np.ndarray]:
         "_last_patch": element_patches[:-1] + np.array(last),  # patch of the last vertex
     })
     return out
-
-
-def _segment_any(mask: np.ndarray, starts: np.ndarray) -> np.ndarray:
-    """Per segment (runs beginning at ``starts``, none empty): does ``mask`` hold anywhere?"""
-    return np.logical_or.reduceat(mask, starts)
-
-
-class _Check:
-    """One check of the posed elements (see the module docs for what it computes).
-
-    Element by element: planes from the hull; bounding spheres cull elements wholly outside the
-    object; the patch centres of the rest get the exact tangent-plane signed distance, patches
-    that may hold samples inside the object (or nearest to it) are opened, their samples get a
-    first-order prediction with an error bound, and the samples that can change a verdict, the
-    deepest value or the clearance are evaluated exactly.
-    """
-
-    def __init__(self, checker: CollisionChecker, poses: np.ndarray):
-        self.c, self.poses = checker, poses
-        c = checker
-        n = len(c._elements)
-        R, t = poses[:, :3, :3], poses[:, :3, 3]
-        eh = c._hull_element
-        hull = np.einsum("hij,hj->hi", R[eh], c._hull) + t[eh]
-        lo, hi = np.minimum.reduceat(hull, c._hull_start), np.maximum.reduceat(hull, c._hull_start)
-        self.depth = np.zeros(n)
-        self.where: list[str | None] = [None] * n
-        self.clearance = np.inf
-        for plane in c.obstacles:
-            h = np.minimum.reduceat(plane.height(hull), c._hull_start)
-            self.clearance = min(self.clearance, max(float(h.min()), 0.0))
-            for i in np.flatnonzero(-h > self.depth):
-                self.depth[i], self.where[i] = -h[i], plane.name
-        near = np.all(hi >= c._lo, axis=1) & np.all(lo <= c._hi, axis=1)
-        if c._voxels is not None and near.any():
-            near[near] = ~c._voxels.clear(lo[near] - _VOXEL_MARGIN, hi[near] + _VOXEL_MARGIN)
-        # Bounding spheres: the signed distance of the centre less the radius bounds the element's
-        # (an element wholly outside by a margin neither penetrates nor needs its samples tested);
-        # the distance to the nearest object point plus the radius bounds its clearance.
-        candidates = np.flatnonzero(near | ~c._contact)
-        centres = np.einsum("eij,ej->ei", R[candidates], c._sphere[candidates]) + t[candidates]
-        sd, _, nearest, _ = c._surface.evaluate(centres)
-        lower = np.minimum(sd, nearest - c._cover) - c._radius[candidates]
-        free = ~c._contact[candidates]
-        self.clearance_bound = self.clearance
-        if free.any():
-            self.clearance_bound = min(self.clearance, float((nearest + c._radius[candidates])[free].min()))
-        self.deep = np.zeros(n, dtype=bool)
-        self.deep[candidates[near[candidates] & (lower < _CULL_MARGIN)]] = True
-        self.apart = np.zeros(n, dtype=bool)
-        self.apart[candidates[free & (lower < self.clearance_bound)]] = True
-
-    def report(self) -> CollisionReport:
-        c = self.c
-        if (self.deep | self.apart).any():
-            self._sample_tests()
-        colliding = [c._elements[i].link for i in np.flatnonzero(self.depth > c.tolerance)]
-        worst = int(np.argmax(self.depth))
-        penetration = float(self.depth[worst])
-        free = not colliding
-        return CollisionReport(
-            collision_free=free, penetration=penetration, clearance=float(self.clearance),
-            colliding_links=tuple(dict.fromkeys(colliding)),
-            obstacle=None if free else self.where[worst],
-        )
-
-    # ------------------------------------------------------------------ samples
-    def _sample_tests(self) -> None:
-        c = self.c
-        act = np.flatnonzero(self.deep | self.apart)
-        first = c._element_patches[act]
-        counts = c._element_patches[act + 1] - first
-        patch = np.repeat(first - np.r_[0, np.cumsum(counts)[:-1]], counts) + np.arange(counts.sum())
-        pe = c._patch_element[patch]
-        R, t = self.poses[:, :3, :3], self.poses[:, :3, 3]
-        centre = np.einsum("pij,pj->pi", R[pe], c._samples[c._patch_start[patch]]) + t[pe]
-        # A patch farther from the object's box than its radius (or whose ball lies in voxels
-        # outside a mesh object) holds no sample inside the object; one farther than its radius
-        # plus the clearance bound none nearer to it.
-        gap = np.linalg.norm(np.maximum(np.maximum(c._lo - centre, centre - c._hi), 0.0), axis=1)
-        rho = c._patch_radius[patch]
-        outside = gap > rho
-        if c._voxels is not None:
-            test = np.flatnonzero(self.deep[pe] & ~outside)
-            reach = (rho[test] + _VOXEL_MARGIN)[:, None]
-            outside[test] = c._voxels.clear(centre[test] - reach, centre[test] + reach)
-            gap = np.maximum(gap, c._voxels.distance_below(centre))
-        need = self.deep[pe] & ~outside
-        need[np.searchsorted(patch, c._last_patch[act])] = True
-        taken = np.flatnonzero(need)
-        sd, normal, nearest, foot = c._surface.evaluate(centre[taken])
-        # patches for the clearance: those that may hold samples nearer than an evaluated centre
-        bound = self.clearance_bound
-        seen = self.apart[pe[taken]]
-        if seen.any():
-            bound = min(bound, float(nearest[seen].min()))
-        more = np.flatnonzero(self.apart[pe] & ~need & (gap - rho < bound))
-        if len(more):
-            need[more] = True
-            extra = c._surface.evaluate(centre[more])
-            order = np.argsort(np.r_[taken, more])
-            sd, normal, nearest, foot = (np.concatenate([a, b])[order]
-                                         for a, b in zip((sd, normal, nearest, foot), extra))
-        self.outside_patch = np.zeros(len(self.depth), dtype=bool)  # elements with such a patch
-        self.outside_patch[pe[~need & outside]] = True
-        patch, pe, centre = patch[need], pe[need], centre[need]
-        counts = np.bincount(np.searchsorted(act, pe), minlength=len(act))
-        element_start = np.r_[0, np.cumsum(counts)[:-1]]  # first patch of each active element
-        Rp = R[pe]
-        m = np.einsum("pij,pi->pj", Rp, normal)  # the gradient in the link frame: R^T n
-        # lowest first-order prediction over each patch (its offsets' bounding box) and less the
-        # prediction error bound
-        low = sd + np.minimum(c._box_lo[patch] * m, c._box_hi[patch] * m).sum(axis=1)
-        low_bound = low - c._patch_margin[patch]
-        deep, contact = self.deep[pe], c._contact[pe]
-        centre_depth = np.maximum.reduceat(-sd, element_start)[np.repeat(np.arange(len(act)), counts)]
-        opened = deep & (low_bound < -c.tolerance)  # the verdict
-        opened |= deep & (low < -(np.maximum(centre_depth, 0.0) + _DEPTH_RESOLUTION))  # the value
-        touching = centre_depth > 0.0
-        opened |= deep & ~contact & ~touching & (low_bound < 0.0)  # does a non-contact element touch?
-        wholly_inside = ~(np.logical_or.reduceat(sd >= 0.0, element_start)
-                          | self.outside_patch[act])[np.repeat(np.arange(len(act)), counts)]
-        opened |= deep & wholly_inside
-        clear = np.flatnonzero(self.apart[pe])
-        if len(clear):  # the patches nearest the object of elements that need their clearance
-            opened[clear[np.argsort(nearest[clear])[:_CLEARANCE_PATCHES]]] = True
-        sizes = np.where(opened, c._patch_size[patch], 1)
-        row_start = np.r_[0, np.cumsum(sizes)[:-1]]
-        rp = np.repeat(np.arange(len(patch)), sizes)  # row -> position in `patch`
-        rows = np.repeat(c._patch_start[patch] - row_start, sizes) + np.arange(sizes.sum())
-        self.pred = sd[rp] + np.einsum("ni,ni->n", c._offsets[rows], m[rp])
-        self.margin = np.where(opened[rp], c._margin[rows], 0.0)
-        self.rows, self.rp, self.Rp, self.tp = rows, rp, Rp, t[pe]
-        self.foot = foot
-        self.owner = pe[rp]
-        counts_rows = np.add.reduceat(sizes, element_start)
-        self.seg = np.r_[0, np.cumsum(counts_rows)[:-1]]  # first row of each active element
-        self.act = act
-        last_rows = row_start[np.searchsorted(patch, c._last_patch[act])]
-        self._refine()
-        self._depths(last_rows)
-        self._clearance()
-
-    def _world(self, rows: np.ndarray) -> np.ndarray:
-        """Object-frame positions of the given rows, (M, 3)."""
-        p = self.rp[rows]
-        return np.einsum("nij,nj->ni", self.Rp[p], self.c._samples[self.rows[rows]]) + self.tp[p]
-
-    def _evaluate(self, rows: np.ndarray) -> None:
-        self.pred[rows] = self.c._surface.evaluate(self._world(rows))[0]
-        self.margin[rows] = 0.0
-
-    def _deepest_known(self) -> np.ndarray:
-        known = self.margin == 0.0
-        return np.maximum(np.maximum.reduceat(np.where(known, -self.pred, -np.inf), self.seg), 0.0)
-
-    def _refine(self) -> None:
-        """Evaluate exactly the samples that can change a verdict, the deepest value, whether a
-        non-contact element touches, or whether an element lies wholly inside.
-
-        The first round takes each element's deepest-looking candidates for the verdict, the value
-        and touching; later rounds all remaining verdict candidates of unsettled elements and the
-        value's candidates while the deepest value grows.
-        """
-        c, seg, owner = self.c, self.seg, self.owner
-        deep = self.deep[owner]
-        free = deep & ~c._contact[owner]
-        position = self._position(owner)
-        deepest = self._deepest_known()
-        improving = np.ones(len(self.act), dtype=bool)
-        for round_ in range(3):
-            known = self.margin == 0.0
-            unknown = deep & ~known
-            if not unknown.any():
-                break
-            lo, hi = self.pred - self.margin, self.pred + self.margin
-            verdict = unknown & (deepest[position] <= c.tolerance) & (-lo > c.tolerance)
-            overall = max(float(deepest.max()), float(self.depth.max()))  # the report's is the deepest
-            value = unknown & (-self.pred > overall + _DEPTH_RESOLUTION) & improving[position]
-            want = self._deepest_looking(value)
-            if round_ == 0:
-                want |= self._deepest_looking(verdict)
-                if self.clearance > 0.0:  # does a non-contact element touch?
-                    touching = _segment_any(known & (self.pred < 0.0), seg)[position]
-                    want |= self._deepest_looking(unknown & free & ~touching & (lo < 0.0))
-            else:
-                want |= verdict
-            outside = (_segment_any(lo >= 0.0, seg) | self.outside_patch[self.act])[position]
-            want |= unknown & ~outside & (hi >= 0.0)  # wholly inside?
-            rows = np.flatnonzero(want)
-            if not len(rows):
-                break
-            self._evaluate(rows)
-            now = self._deepest_known()
-            improving, deepest = now > deepest, now
-
-    def _deepest_looking(self, mask: np.ndarray) -> np.ndarray:
-        """The ``_DEEPEST_CANDIDATES`` rows of ``mask`` with the lowest prediction, per element."""
-        out = np.zeros(len(mask), dtype=bool)
-        rows = np.flatnonzero(mask)
-        if len(rows):
-            rows = rows[np.lexsort((self.pred[rows], self.owner[rows]))]
-            group = self.owner[rows]
-            begin = np.flatnonzero(np.r_[True, group[1:] != group[:-1]])
-            rank = np.arange(len(rows)) - np.repeat(begin, np.diff(np.r_[begin, len(rows)]))
-            out[rows[rank < _DEEPEST_CANDIDATES]] = True
-        return out
-
-    def _position(self, owner: np.ndarray) -> np.ndarray:
-        """Position in ``self.act`` of elements ``owner``."""
-        return np.searchsorted(self.act, owner)
-
-    def _depths(self, last_rows: np.ndarray) -> None:
-        c, seg = self.c, self.seg
-        deep = self.deep[self.act]
-        if not deep.any():
-            return
-        known = self.margin == 0.0
-        inside_any = _segment_any((known & (self.pred < 0.0)) | (self.pred + self.margin < 0.0), seg)
-        outside_any = _segment_any(self.pred - self.margin >= 0.0, seg) | self.outside_patch[self.act]
-        deepest = self._deepest_known()
-        inner = c._object_inside(self.act[deep], self.poses)
-        for k in np.flatnonzero(deep):
-            i = self.act[k]
-            d_out = inner.get(i, 0.0)
-            if inside_any[k] and not outside_any[k] and d_out == 0.0:  # wholly inside: a vertex tells
-                d = max(0.0, -float(self.pred[last_rows[k]]))
-            else:
-                d = max(float(deepest[k]), d_out)
-            if d > self.depth[i]:
-                self.depth[i], self.where[i] = d, "object"
-            if d > 0.0 and not c._contact[i]:
-                self.clearance = 0.0
-
-    def _clearance(self) -> None:
-        if self.clearance == 0.0:
-            return
-        rows = np.flatnonzero(self.apart[self.owner])
-        if not len(rows):
-            return
-        # the samples nearest the nearest samples of the object seen from the centres
-        world = self._world(rows)
-        far = np.linalg.norm(world - self.foot[self.rp[rows]], axis=1)
-        take = np.argsort(far)[:_CLEARANCE_CANDIDATES]
-        self.clearance = min(self.clearance, self.c._clearance_of(world[take], self.owner[rows[take]],
-                                                                  self.poses))

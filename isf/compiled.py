@@ -23,8 +23,7 @@ import numpy as np
 import pinocchio as pin
 import trimesh
 
-from .collision_elements import Element, SignedDistanceGrid
-from .collision_surface import TangentPlanes
+from .collision import CollisionChecker
 from .collision_voxels import SurfaceVoxels
 from .convex_elements import ConvexElements
 from .correspondence import match
@@ -49,6 +48,29 @@ def _tiny_gripper() -> Gripper:
     return Gripper("warm-up", model, (pad,), np.zeros(1))
 
 
+def _check_collisions() -> None:
+    """Collision checks of a convex block (the pad's) and a non-convex ring above it against a
+    closed mesh, apart and pressed in."""
+    tiny = _tiny_gripper()
+    block = trimesh.creation.box(extents=(0.02, 0.02, 0.01))
+    block.apply_translation((0.05, 0.0, 0.005))  # the pad lies on its lower face
+    ring = trimesh.creation.torus(0.006, 0.002, major_sections=12, minor_sections=6)
+    ring.apply_translation((0.05, 0.0, 0.02))
+    gripper = Gripper("warm-up", tiny.model, tiny.surfaces, tiny.q_initial, geometries=(
+        LinkGeometry("link", "block", block.vertices, block.faces),
+        LinkGeometry("link", "ring", ring.vertices, ring.faces)))
+    cube = trimesh.creation.box(extents=(0.04, 0.04, 0.03))
+    cube.apply_translation((0.05, 0.0, -0.016))
+    points, faces = trimesh.sample.sample_surface(cube, 2000, seed=0)
+    obj = ObjectSurface(points, cube.face_normals[faces], spacing=0.001, mesh_vertices=cube.vertices,
+                        mesh_faces=cube.faces)
+    checker = CollisionChecker(gripper, obj)
+    for depth in (0.0, 0.004, 0.02):  # apart (clearance measured), block in, ring in
+        T = np.eye(4)
+        T[2, 3] = -depth
+        checker.check(T, np.zeros(1))
+
+
 def warm_up() -> float:
     """Compile, or load from the cache, every compiled kernel of isf; returns the seconds taken.
 
@@ -71,17 +93,11 @@ def warm_up() -> float:
     plane.nearest(plane.points[:2])  # as the collision repair asks
     match(plane, plane.points[:8] + [0.0, 0.0, 0.001], outlier_factor=3.0, outlier_floor=0.005,
           reject_duplicates=True)
-    planes = TangentPlanes(plane.points, plane.normals, 0.001)  # as the collision checks ask
-    bounds = np.array([[0.04, -0.01, -0.01], [0.06, 0.01, 0.01]])
-    SignedDistanceGrid(planes, bounds, 64).interpolate(plane.points[:2])
     box = trimesh.creation.box(extents=(0.01, 0.01, 0.01))
     ConvexElements([(box.vertices, box.faces)], np.zeros(1), np.zeros(1)).rows(
         np.eye(4), np.eye(3)[None], np.zeros((1, 3)), plane.points, 0.003)
     solve_dense_qp(np.eye(2), np.ones(2), np.ones((1, 2)), np.zeros(1), np.ones(1))
-    voxels = SurfaceVoxels(box.vertices, box.faces)  # the collision checks' voxels and elements
+    voxels = SurfaceVoxels(box.vertices, box.faces)  # the collision checks' voxels
     voxels.clear(box.vertices, box.vertices), voxels.distance_below(box.vertices)
-    element = Element(LinkGeometry("link", "box", box.vertices, box.faces), 0,
-                      np.random.default_rng(0))
-    T[:3, 3] = [0.05, 0.0, 0.0]  # some plane points inside the box
-    element.object_depth(plane.points, T, 0.002)
+    _check_collisions()
     return time.perf_counter() - start
