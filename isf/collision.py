@@ -74,7 +74,7 @@ import numpy as np
 import pinocchio as pin
 
 from .collision_elements import Element, bvh, even_samples, point_triangle_distance
-from .collision_kernel import check_elements
+from .collision_kernel import PREDICTION_ERROR, PREDICTION_SLOPE, check_elements
 from .collision_surface import NEIGHBOURS, TangentPlanes, closed_mesh, mesh_memo
 from .collision_voxels import SurfaceVoxels
 from .exceptions import GripperDescriptionError, InvalidInputError
@@ -88,10 +88,6 @@ logger = logging.getLogger(__name__)
 _OBJECT_SPACING = 0.001  # resampling of a closed mesh object, m
 _MAX_OBJECT_SAMPLES = 50000
 _ON_SURFACE = 1e-6  # a contact point this close to an element lies on it, m
-# First-order prediction of the signed distance at a sample from its patch centre is trusted to
-# within _PREDICTION_ERROR + _PREDICTION_SLOPE * (distance to the centre).
-_PREDICTION_ERROR = 1e-4  # m
-_PREDICTION_SLOPE = 0.5
 _CLEARANCE_EXACT = 3  # of the clearance candidates, how many get the exact distance to a mesh object (coal)
 _REVERSE_PROBES = 4  # object samples whose distance to the nearest-looking elements is measured
 
@@ -229,12 +225,13 @@ class CollisionChecker:
         # random samples leave gaps a few spacings wide; 0 for a bare point cloud).
         self._cover = 3.0 * self._surface.spacing if obj.is_mesh else 0.0
         voxels = self._voxels
+        probes = np.ascontiguousarray(self._points[np.argsort(self._points[:, 0], kind="stable")])
         self._kernel_args = (
             (np.array([p.normal for p in self.obstacles]).reshape(-1, 3),
              np.array([p.offset for p in self.obstacles], dtype=float)),
             tuple(packed[name] for name in _ELEMENT_ARRAYS),
             tuple(packed[name] for name in _PATCH_ARRAYS),
-            (self._surface.points, self._surface.normals, self._surface.tree.tree, self._points,
+            (self._surface.points, self._surface.normals, self._surface.tree.tree, probes, probes[:, 0].copy(),
              self._lo, self._hi, self._cover, min(NEIGHBOURS, len(self._surface.points))),
             (False, np.zeros((1, 1, 1), np.int64), np.zeros((1, 1, 1), np.int32), np.zeros(3), 1.0)
             if voxels is None else (True, voxels.table, voxels.steps, voxels.lo, voxels.size))
@@ -445,7 +442,7 @@ def _packed(els: list[Element]) -> dict[str, np.ndarray]:
     offsets = np.concatenate(offsets)
     reach = np.linalg.norm(offsets, axis=1)
     patch_start = np.concatenate(starts)
-    margin = _PREDICTION_ERROR + _PREDICTION_SLOPE * reach
+    margin = PREDICTION_ERROR + PREDICTION_SLOPE * reach
     margin[patch_start] = 0.0  # the centres
     patch_radius = np.maximum.reduceat(reach, patch_start)
     element_patches = np.r_[0, np.cumsum([len(x) for x in starts])]
@@ -453,7 +450,7 @@ def _packed(els: list[Element]) -> dict[str, np.ndarray]:
         "_samples": np.concatenate(samples), "_offsets": offsets, "_margin": margin,
         "_patch_start": patch_start, "_patch_size": np.concatenate(sizes),
         "_patch_radius": patch_radius,
-        "_patch_margin": _PREDICTION_ERROR + _PREDICTION_SLOPE * patch_radius,
+        "_patch_margin": PREDICTION_ERROR + PREDICTION_SLOPE * patch_radius,
         "_box_lo": np.minimum.reduceat(offsets, patch_start),
         "_box_hi": np.maximum.reduceat(offsets, patch_start),
         "_element_patches": element_patches,
