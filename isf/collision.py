@@ -71,10 +71,10 @@ from dataclasses import dataclass
 
 import coal
 import numpy as np
-import pinocchio as pin
+from numba import njit
 
 from .collision_elements import Element, bvh, even_samples, point_triangle_distance
-from .collision_kernel import PREDICTION_ERROR, PREDICTION_SLOPE, check_elements
+from .collision_kernel import PREDICTION_ERROR, PREDICTION_SLOPE, check_elements, reverse_clearance
 from .collision_surface import NEIGHBOURS, TangentPlanes, closed_mesh, mesh_memo
 from .collision_voxels import SurfaceVoxels
 from .exceptions import GripperDescriptionError, InvalidInputError
@@ -90,6 +90,19 @@ _MAX_OBJECT_SAMPLES = 50000
 _ON_SURFACE = 1e-6  # a contact point this close to an element lies on it, m
 _CLEARANCE_EXACT = 3  # of the clearance candidates, how many get the exact distance to a mesh object (coal)
 _REVERSE_PROBES = 4  # object samples whose distance to the nearest-looking elements is measured
+
+
+@njit(cache=True, error_model="numpy")
+def _rigid(T):
+    """Is the finite 4x4 ``T`` a rigid transform: rotation orthonormal to 1e-6, last row
+    ``[0 0 0 1]`` to 1e-12?"""
+    for i in range(3):
+        for j in range(3):
+            dot = T[0, i] * T[0, j] + T[1, i] * T[1, j] + T[2, i] * T[2, j]
+            if abs(dot - (1.0 if i == j else 0.0)) > 1e-6:
+                return False
+    return (abs(T[3, 0]) <= 1e-12 and abs(T[3, 1]) <= 1e-12 and abs(T[3, 2]) <= 1e-12
+            and abs(T[3, 3] - 1.0) <= 1e-12)
 
 
 def object_bvh(obj: ObjectSurface) -> coal.BVHModelOBBRSS:
@@ -212,8 +225,8 @@ class CollisionChecker:
                 f"a geometry belongs to link {link!r}, which the model lacks; fix its link name"
                 for link in missing])
         self._links = links
-        self._frame_ids = [gripper.model.getFrameId(link) for link in links]
-        self._data = gripper.model.createData()
+        self._frame_ids = np.array([gripper.model.getFrameId(link) for link in links])
+        self._obstacle_names = [p.name for p in self.obstacles] + ["object"]
         self._elements, packed, state = _prepared(gripper, links)
         vars(self).update(packed)
         self._surface = _object_surface(obj, state)
@@ -234,7 +247,8 @@ class CollisionChecker:
             (self._surface.points, self._surface.normals, self._surface.tree.tree, probes, probes[:, 0].copy(),
              self._lo, self._hi, self._cover, min(NEIGHBOURS, len(self._surface.points))),
             (False, np.zeros((1, 1, 1), np.int64), np.zeros((1, 1, 1), np.int32), np.zeros(3), 1.0)
-            if voxels is None else (True, voxels.table, voxels.steps, voxels.lo, voxels.size))
+            if voxels is None else (True, voxels.table, voxels.steps, voxels.lo, voxels.size),
+            tuple(packed[name] for name in _INTERIOR_ARRAYS))
         self.estimates = 0
         """Exact tangent-plane estimates of the object's surface made by the checks so far (a
         cost diagnostic)."""
@@ -243,17 +257,12 @@ class CollisionChecker:
         self._distance_request = coal.DistanceRequest()
 
     # ------------------------------------------------------------------- check
-    def _link_poses(self, T: np.ndarray, q: np.ndarray) -> np.ndarray:
-        pin.framesForwardKinematics(self.gripper.model, self._data, q)
-        return np.array([T @ self._data.oMf[fid].homogeneous for fid in self._frame_ids])
-
     def _check_inputs(self, T_object_gripper, q) -> tuple[np.ndarray, np.ndarray]:
         T = np.asarray(T_object_gripper, dtype=float)
         if T.shape != (4, 4) or not np.isfinite(T).all():
             raise InvalidInputError(f"T_object_gripper must be a finite 4x4 homogeneous transform, "
                                     f"got shape {T.shape}; pass the fitted palm pose")
-        R = T[:3, :3]
-        if np.abs(R.T @ R - np.eye(3)).max() > 1e-6 or np.abs(T[3] - [0, 0, 0, 1]).max() > 1e-12:
+        if not _rigid(T):
             raise InvalidInputError("T_object_gripper is not a rigid transform (rotation not "
                                     "orthonormal or last row not [0 0 0 1]); re-orthonormalise it")
         q = np.asarray(q, dtype=float).reshape(-1)
@@ -268,7 +277,20 @@ class CollisionChecker:
             InvalidInputError: ``T_object_gripper`` is not a rigid transform or ``q`` has the wrong size.
         """
         T, q = self._check_inputs(T_object_gripper, q)
-        return self._report(self._link_poses(T, q)[self._frames])
+        links = self.gripper.frame_kinematics_many(q[None], self._frame_ids)
+        poses, depth, where, clearance, candidates, owner, nearest, estimates = check_elements(
+            T, links.rotations[0], links.positions[0], self.tolerance, *self._kernel_args)
+        self.estimates += estimates
+        if clearance > 0.0 and len(candidates):
+            clearance = min(clearance, self._clearance_of(candidates, owner, nearest, poses))
+        colliding = [self._elements[i].link for i in np.flatnonzero(depth > self.tolerance)]
+        worst = int(np.argmax(depth))
+        free = not colliding
+        return CollisionReport(
+            collision_free=free, penetration=float(depth[worst]), clearance=float(clearance),
+            colliding_links=tuple(dict.fromkeys(colliding)),
+            obstacle=None if free else self._obstacle_names[where[worst]],
+        )
 
     def check_many(self, T_object_gripper: np.ndarray, q: np.ndarray) -> list[CollisionReport]:
         """:meth:`check` of B poses (B, 4, 4) with joints (B, n_joints), in order.
@@ -283,70 +305,26 @@ class CollisionChecker:
                                     f"{T.shape} and {q.shape}; stack one pose and joint vector per grasp")
         return [self.check(t, j) for t, j in zip(T, q)]
 
-    # ------------------------------------------------------------ the check itself
-    def _report(self, poses: np.ndarray) -> CollisionReport:
-        """The check of the elements posed at ``poses`` (E, 4, 4) (see the module docs): the
-        compiled body (:func:`isf.collision_kernel.check_elements`), then the object points
-        inside the non-convex closed elements, each element's depth and the exact clearance."""
-        depth, where, clearance, act, summary, candidates, owner, guess, estimates = check_elements(
-            poses, self.tolerance, *self._kernel_args)
-        self.estimates += estimates
-        for k in np.flatnonzero(summary[:, 0]):  # the elements whose samples may lie inside
-            i = int(act[k])
-            e = self._elements[i]
-            _, inside_any, outside_any, deepest, last, inner = summary[k]
-            if e.surface is not None:  # closed, non-convex
-                inner = e.object_depth(self._points, poses[i], self.tolerance)
-            if inside_any and not outside_any and inner == 0.0:  # wholly inside: a vertex tells
-                d = max(0.0, -float(last))
-            else:
-                d = max(float(deepest), float(inner))
-            if d > depth[i]:
-                depth[i], where[i] = d, len(self.obstacles)
-            if d > 0.0 and not self._contact[i]:
-                clearance = 0.0
-        if clearance > 0.0 and len(candidates):
-            clearance = min(clearance, self._clearance_of(candidates, owner, guess, poses))
-        colliding = [self._elements[i].link for i in np.flatnonzero(depth > self.tolerance)]
-        worst = int(np.argmax(depth))
-        free = not colliding
-        names = [p.name for p in self.obstacles] + ["object"]
-        return CollisionReport(
-            collision_free=free, penetration=float(depth[worst]), clearance=float(clearance),
-            colliding_links=tuple(dict.fromkeys(colliding)),
-            obstacle=None if free else names[where[worst]],
-        )
-
-    def _point_distance(self, point: np.ndarray, geometry, pose: coal.Transform3s) -> float:
-        """Exact distance from a point (3,) to a coal geometry posed at ``pose``, metres."""
-        return coal.distance(self._point, coal.Transform3s(np.eye(3), point), geometry, pose,
-                             self._distance_request, coal.DistanceResult())
-
-    def _clearance_of(self, points: np.ndarray, owner: np.ndarray, guess: np.ndarray,
+    # ------------------------------------------------------------------- clearance
+    def _clearance_of(self, points: np.ndarray, owner: np.ndarray, nearest: np.ndarray,
                       poses: np.ndarray) -> float:
         """Smallest distance between the elements and the object, metres, measured from samples
-        ``points`` (M, 3) of elements ``owner`` (M,) that lie nearest the object (``guess``: an
-        object point near each, to speed the search).
+        ``points`` (M, 3) of elements ``owner`` (M,) that lie nearest the object (``nearest``:
+        their distances to the nearest object point).
 
         Both ways, each an exact point distance: from the few samples nearest the object's samples
         to the object's mesh (coal; to the nearest object sample for a point cloud), and from the
-        object samples nearest the best of those to the triangles of its element and of the
-        runner-up element.
+        object samples nearest the best of those to the triangles of their elements
+        (:func:`isf.collision_kernel.reverse_clearance`).
         """
-        nearest, _ = self._surface.tree.query(points, guess)
         measured = nearest.copy()
         if self._mesh is not None:
-            for j in np.argsort(nearest)[:_CLEARANCE_EXACT]:
-                measured[j] = self._point_distance(points[j], self._mesh, self._identity)
-        order = np.argsort(measured)
-        best = float(measured[order[0]])
-        k = min(_REVERSE_PROBES, len(self._surface.points))
-        for j in order[np.unique(owner[order], return_index=True)[1]][:2]:
-            e = int(owner[j])
-            pose = coal.Transform3s(poses[e, :3, :3], poses[e, :3, 3])
-            for probe in self._surface.points[self._surface.tree.query_k(points[j], k)[1][0]]:
-                best = min(best, self._point_distance(probe, self._elements[e].bvh, pose))
-        return max(best, 0.0)
+            for j in np.argsort(nearest, kind="stable")[:_CLEARANCE_EXACT]:
+                measured[j] = coal.distance(self._point, coal.Transform3s(np.eye(3), points[j]), self._mesh,
+                                            self._identity, self._distance_request, coal.DistanceResult())
+        return reverse_clearance(measured, points, owner, poses, self._triangles, self._triangle_start,
+                                 self._surface.points, self._surface.tree.tree,
+                                 min(_REVERSE_PROBES, len(self._surface.points)))
 
 
 # ---------------------------------------------------------------------- set-up
@@ -402,9 +380,47 @@ def _object_surface(obj: ObjectSurface, state: dict) -> TangentPlanes:
 
 
 _ELEMENT_ARRAYS = ("_hull", "_hull_start", "_sphere", "_radius", "_contact", "_kind", "_bounds",
-                   "_planes", "_plane_start", "_element_patches", "_last_patch")
+                   "_planes", "_plane_start", "_element_patches", "_last_patch", "_frames")
+_INTERIOR_ARRAYS = ("_hull_planes", "_hull_plane_start", "_field", "_field_start", "_field_shape", "_field_lo",
+                    "_field_h", "_inner_start", "_node_start", "_inner_points", "_inner_normals",
+                    "_tree_points", "_tree_order", "_node_first", "_node_stop", "_node_axis", "_node_split",
+                    "_node_left", "_node_right")
 _PATCH_ARRAYS = ("_samples", "_offsets", "_margin", "_patch_start", "_patch_size", "_patch_radius",
                  "_patch_margin", "_box_lo", "_box_hi")
+
+
+def _stacked(parts: list[np.ndarray], dtype=float) -> tuple[np.ndarray, np.ndarray]:
+    """The arrays ``parts`` stacked along their first axis, and where each starts (len + 1,)."""
+    return (np.ascontiguousarray(np.concatenate(parts), dtype=dtype),
+            np.r_[0, np.cumsum([len(x) for x in parts])])
+
+
+def _interiors(els: list[Element]) -> dict[str, np.ndarray]:
+    """The insides of the closed non-convex elements stacked (empty for the others): hull
+    planes, grids (values raveled, with their shapes, corners and spacings) and surfaces with
+    their trees (:attr:`isf.nearest.NearestPoints.tree`; indices within each element's part)."""
+    parts = [(e.hull_planes if e.hull_planes is not None else np.empty((0, 4)), e.field, e.surface)
+             if e.surface is not None else (np.empty((0, 4)), None, None) for e in els]
+    out = {}
+    out["_hull_planes"], out["_hull_plane_start"] = _stacked([p[0] for p in parts])
+    out["_field"], out["_field_start"] = _stacked(
+        [np.ravel(f.values) if f is not None else np.empty(0) for _, f, _ in parts])
+    out["_field_shape"] = np.array([f.values.shape if f is not None else (0, 0, 0) for _, f, _ in parts])
+    out["_field_lo"] = np.array([f.lo if f is not None else np.zeros(3) for _, f, _ in parts])
+    out["_field_h"] = np.array([f.h if f is not None else 1.0 for _, f, _ in parts])
+    surfaces = [s for _, _, s in parts]
+    out["_inner_points"], out["_inner_start"] = _stacked(
+        [s.points if s is not None else np.empty((0, 3)) for s in surfaces])
+    out["_inner_normals"], _ = _stacked([s.normals if s is not None else np.empty((0, 3)) for s in surfaces])
+    trees = [s.tree.tree if s is not None else None for s in surfaces]
+    out["_tree_points"], _ = _stacked([t[0] if t else np.empty((0, 3)) for t in trees])
+    out["_tree_order"], _ = _stacked([t[1] if t else np.empty(0, np.int64) for t in trees], np.int64)
+    nodes = ("_node_first", "_node_stop", "_node_axis", "_node_split", "_node_left", "_node_right")
+    for k, name in enumerate(nodes, start=2):
+        out[name], out["_node_start"] = _stacked(
+            [t[k] if t else np.empty(0, float if name == "_node_split" else np.int64) for t in trees],
+            float if name == "_node_split" else np.int64)
+    return out
 
 
 def _packed(els: list[Element]) -> dict[str, np.ndarray]:
@@ -424,7 +440,10 @@ def _packed(els: list[Element]) -> dict[str, np.ndarray]:
            "_hull": np.concatenate([e.hull for e in els]),
            "_hull_start": np.r_[0, np.cumsum([len(e.hull) for e in els])],
            "_sphere": np.array([e.centre for e in els]),
-           "_radius": np.array([e.radius for e in els])}
+           "_radius": np.array([e.radius for e in els]),
+           "_triangles": np.ascontiguousarray(np.concatenate([e.mesh.triangles for e in els]), dtype=float),
+           "_triangle_start": np.r_[0, np.cumsum([len(e.mesh.faces) for e in els])]}
+    out.update(_interiors(els))
     samples, offsets, starts, sizes, last, rows = [], [], [], [], [], 0
     for e in els:
         is_centre = np.zeros(len(e.samples), dtype=bool)

@@ -45,22 +45,55 @@ def even_samples(mesh: trimesh.Trimesh, spacing: float, max_points: int,
     return points, mesh.face_normals[face]
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _segment_distance2(px, py, pz, ax, ay, az, bx, by, bz):
+    """Squared distance from ``p`` to the segment ``ab``."""
+    dx, dy, dz = bx - ax, by - ay, bz - az
+    length2 = dx * dx + dy * dy + dz * dz
+    s = 0.0 if length2 <= 0.0 else min(max(((px - ax) * dx + (py - ay) * dy + (pz - az) * dz) / length2, 0.0), 1.0)
+    return (px - ax - s * dx) ** 2 + (py - ay - s * dy) ** 2 + (pz - az - s * dz) ** 2
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def triangle_distance2(px, py, pz, tri, f):
+    """Squared distance from ``p`` to triangle ``tri[f]`` ((F, 3, 3) corners): the nearest point
+    by the triangle's Voronoi regions (Ericson, Real-Time Collision Detection, 5.1.5); a
+    degenerate triangle's by its edges."""
+    ax, ay, az = tri[f, 0, 0], tri[f, 0, 1], tri[f, 0, 2]
+    bx, by, bz = tri[f, 1, 0], tri[f, 1, 1], tri[f, 1, 2]
+    cx, cy, cz = tri[f, 2, 0], tri[f, 2, 1], tri[f, 2, 2]
+    abx, aby, abz, acx, acy, acz = bx - ax, by - ay, bz - az, cx - ax, cy - ay, cz - az
+    d1 = abx * (px - ax) + aby * (py - ay) + abz * (pz - az)
+    d2 = acx * (px - ax) + acy * (py - ay) + acz * (pz - az)
+    d3 = abx * (px - bx) + aby * (py - by) + abz * (pz - bz)
+    d4 = acx * (px - bx) + acy * (py - by) + acz * (pz - bz)
+    d5 = abx * (px - cx) + aby * (py - cy) + abz * (pz - cz)
+    d6 = acx * (px - cx) + acy * (py - cy) + acz * (pz - cz)
+    va, vb, vc = d3 * d6 - d5 * d4, d5 * d2 - d1 * d6, d1 * d4 - d3 * d2
+    if va > 0.0 and vb > 0.0 and vc > 0.0:  # the foot lies inside: the distance to the plane
+        v, w = vb / (va + vb + vc), vc / (va + vb + vc)
+        return ((px - ax - v * abx - w * acx) ** 2 + (py - ay - v * aby - w * acy) ** 2
+                + (pz - az - v * abz - w * acz) ** 2)
+    return min(_segment_distance2(px, py, pz, ax, ay, az, bx, by, bz),
+               _segment_distance2(px, py, pz, bx, by, bz, cx, cy, cz),
+               _segment_distance2(px, py, pz, cx, cy, cz, ax, ay, az))
+
+
+@njit(cache=True, error_model="numpy")
+def _nearest_triangle_distances(points, triangles):
+    out = np.empty(len(points))
+    for i in range(len(points)):
+        best = np.inf
+        for f in range(len(triangles)):
+            best = min(best, triangle_distance2(points[i, 0], points[i, 1], points[i, 2], triangles, f))
+        out[i] = np.sqrt(best)
+    return out
+
+
 def point_triangle_distance(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     """Exact distance of each point (M, 3) to the nearest of the triangles (F, 3, 3), metres (M,)."""
-    a, b, c = triangles[:, 0], triangles[:, 1], triangles[:, 2]
-    p = points[:, None, :]
-    n = np.cross(b - a, c - a)
-    n2 = np.maximum(np.einsum("fi,fi->f", n, n), 1e-300)
-    foot = p - (np.einsum("mfi,fi->mf", p - a, n) / n2)[..., None] * n
-    inside = np.ones(foot.shape[:2], dtype=bool)
-    for x, y in ((a, b), (b, c), (c, a)):  # the foot lies inside when every edge sees it on n's side
-        inside &= np.einsum("mfi,fi->mf", np.cross(y - x, foot - x), n) >= 0
-    best = np.where(inside, np.linalg.norm(p - foot, axis=2), np.inf)
-    for x, y in ((a, b), (b, c), (c, a)):  # else the nearest point lies on an edge
-        d = y - x
-        s = np.clip(np.einsum("mfi,fi->mf", p - x, d) / np.maximum(np.einsum("fi,fi->f", d, d), 1e-300), 0, 1)
-        best = np.minimum(best, np.linalg.norm(p - (x + s[..., None] * d), axis=2))
-    return best.min(axis=1)
+    return _nearest_triangle_distances(np.ascontiguousarray(points, dtype=np.float64),
+                                       np.ascontiguousarray(triangles, dtype=np.float64))
 
 
 def bvh(vertices: np.ndarray, faces: np.ndarray) -> coal.BVHModelOBBRSS:

@@ -19,10 +19,11 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .collision_elements import convex_depth
-from .collision_surface import estimate
+from . import kdtree
+from .collision_elements import convex_depth, non_convex_depth, triangle_distance2
+from .collision_surface import NEIGHBOURS, estimate
 from .collision_voxels import box_clear, distance_below
-from .nearest import search_scratch
+from .nearest import nearest_point, search_scratch
 
 # The first-order prediction of the signed distance at a sample from its patch centre is trusted
 # to within PREDICTION_ERROR + PREDICTION_SLOPE * (the distance to the centre).
@@ -370,14 +371,42 @@ def _refine(poses, tolerance, plane_depth, clearance, act, deep, outside_patch, 
 
 
 @njit(cache=True, error_model="numpy")
-def _summaries(poses, act, deep, outside_patch, pred, lo, hi, seg, last_row, deepest, elements, surface):
-    """Per active element ``[deep, inside_any, outside_any, deepest, last vertex's value, convex
-    object depth]`` (A, 6): some row certainly inside, some row (or settled patch) certainly
-    outside, the deepest evaluated row, the estimate at its last vertex and the deepest object
-    point inside it when it is closed and convex."""
+def _object_depth(poses, e, tolerance, elements, surface, interiors):
+    """Deepest object point inside closed element ``e`` (0 for an open one), metres: of the
+    object points within the x span of its box (a bound of it), by
+    :func:`isf.collision_elements.convex_depth` or
+    :func:`isf.collision_elements.non_convex_depth`."""
     kind, bounds, planes, plane_start = elements[5], elements[6], elements[7], elements[8]
-    ordered, ordered_x = surface[3], surface[4]
-    summary = np.zeros((len(act), 6))
+    probes, probes_x = surface[3], surface[4]
+    if kind[e] == 0:
+        return 0.0
+    reach = 1e-9
+    for j in range(3):
+        reach += abs(poses[e, 0, j]) * max(abs(bounds[e, 0, j]), abs(bounds[e, 1, j]))
+    first = np.searchsorted(probes_x, poses[e, 0, 3] - reach)
+    last = np.searchsorted(probes_x, poses[e, 0, 3] + reach, side="right")
+    if kind[e] == 1:
+        return convex_depth(probes[first:last], poses[e], bounds[e], planes[plane_start[e]:plane_start[e + 1]])
+    hull_planes, hull_start, field, field_start, field_shape, field_lo, field_h, inner_start, node_start, \
+        inner_points, inner_normals, tree_points, order, start, stop, axis, split, left, right = interiors
+    a, b, f, n0, n1 = inner_start[e], inner_start[e + 1], field_start[e], node_start[e], node_start[e + 1]
+    values = field[f:field_start[e + 1]].reshape((field_shape[e, 0], field_shape[e, 1], field_shape[e, 2]))
+    tree = (tree_points[a:b], order[a:b], start[n0:n1], stop[n0:n1], axis[n0:n1], split[n0:n1], left[n0:n1],
+            right[n0:n1])
+    return non_convex_depth(probes[first:last], poses[e], bounds[e], tolerance,
+                            hull_planes[hull_start[e]:hull_start[e + 1]], values, field_lo[e], field_h[e],
+                            inner_points[a:b], inner_normals[a:b], tree, min(NEIGHBOURS, b - a))
+
+
+@njit(cache=True, error_model="numpy")
+def _object_depths(poses, tolerance, act, deep, outside_patch, pred, lo, hi, seg, last_row, deepest, depth,
+                   where, clearance, elements, surface, interiors, obstacle):
+    """Each deep element's depth into the object: that of its deepest evaluated row or object
+    point inside it; when some row lies certainly inside and none (nor a settled patch)
+    certainly outside and no object point lies inside it, it lies wholly inside and its last
+    vertex tells. Updates ``depth`` and ``where`` (to ``obstacle``); returns the clearance, 0
+    when a non-contact element penetrates."""
+    contact = elements[4]
     for k in range(len(act)):
         e = act[k]
         if not deep[e]:
@@ -386,64 +415,106 @@ def _summaries(poses, act, deep, outside_patch, pred, lo, hi, seg, last_row, dee
         for r in range(seg[k], seg[k + 1]):
             inside_any |= (lo[r] == hi[r] and pred[r] < 0.0) or hi[r] < 0.0
             outside_any |= lo[r] >= 0.0
-        summary[k, 0], summary[k, 1], summary[k, 2] = 1.0, inside_any, outside_any
-        summary[k, 3], summary[k, 4] = deepest[k], pred[last_row[k]]
-        if kind[e] == 1:  # the object points within the x span of its box (a bound of its hull's)
-            reach = 1e-9
-            for j in range(3):
-                reach += abs(poses[e, 0, j]) * max(abs(bounds[e, 0, j]), abs(bounds[e, 1, j]))
-            first = np.searchsorted(ordered_x, poses[e, 0, 3] - reach)
-            last = np.searchsorted(ordered_x, poses[e, 0, 3] + reach, side="right")
-            summary[k, 5] = convex_depth(ordered[first:last], poses[e], bounds[e],
-                                         planes[plane_start[e]:plane_start[e + 1]])
-    return summary
+        inner = _object_depth(poses, e, tolerance, elements, surface, interiors)
+        if inside_any and not outside_any and inner == 0.0:
+            d = max(0.0, -pred[last_row[k]])
+        else:
+            d = max(deepest[k], inner)
+        if d > depth[e]:
+            depth[e], where[e] = d, obstacle
+        if d > 0.0 and not contact[e]:
+            clearance = 0.0
+    return clearance
 
 
 @njit(cache=True, error_model="numpy")
-def _clearance_candidates(poses, act, apart, row, rp, pk, foot, samples, points):
+def _clearance_candidates(poses, act, apart, row, rp, pk, foot, samples, surface, search):
     """The :data:`CLEARANCE_CANDIDATES` rows of apart elements nearest the object point nearest
-    their patch centre (ties: the earlier row): positions (C, 3), elements (C,) and those object
-    points (C,)."""
+    their patch centre (ties: the earlier row): positions (C, 3), elements (C,) and distances to
+    the nearest object point (C,)."""
+    points = surface[0]
+    top, far = np.empty(CLEARANCE_CANDIDATES, np.int64), np.empty(CLEARANCE_CANDIDATES)
     n = 0
-    for r in range(len(row)):
-        n += apart[act[pk[rp[r]]]]
-    far, place, free_row = np.empty(n), np.empty((n, 3)), np.empty(n, np.int64)
-    j = 0
     for r in range(len(row)):
         e = act[pk[rp[r]]]
         if not apart[e]:
             continue
         s, f = row[r], foot[rp[r]]
         x, y, z = _transform(poses, e, samples[s, 0], samples[s, 1], samples[s, 2])
-        place[j, 0], place[j, 1], place[j, 2] = x, y, z
-        far[j] = np.sqrt((x - points[f, 0]) ** 2 + (y - points[f, 1]) ** 2 + (z - points[f, 2]) ** 2)
-        free_row[j] = r
-        j += 1
-    take = np.argsort(far, kind="mergesort")[:CLEARANCE_CANDIDATES]
-    candidates = np.empty((len(take), 3))
-    owner, guess = np.empty(len(take), np.int64), np.empty(len(take), np.int64)
-    for j in range(len(take)):
-        t = take[j]
-        candidates[j, 0], candidates[j, 1], candidates[j, 2] = place[t, 0], place[t, 1], place[t, 2]
-        i = rp[free_row[t]]
-        owner[j], guess[j] = act[pk[i]], foot[i]
-    return candidates, owner, guess
+        d = np.sqrt((x - points[f, 0]) ** 2 + (y - points[f, 1]) ** 2 + (z - points[f, 2]) ** 2)
+        if n == CLEARANCE_CANDIDATES and d >= far[n - 1]:
+            continue
+        j = min(n, CLEARANCE_CANDIDATES - 1)
+        while j > 0 and far[j - 1] > d:
+            top[j], far[j] = top[j - 1], far[j - 1]
+            j -= 1
+        top[j], far[j] = r, d
+        n = min(n + 1, CLEARANCE_CANDIDATES)
+    candidates, owner, nearest = np.empty((n, 3)), np.empty(n, np.int64), np.empty(n)
+    scratch = (search[2], search[3], search[4])
+    for j in range(n):
+        r = top[j]
+        e, s = act[pk[rp[r]]], row[r]
+        x, y, z = _transform(poses, e, samples[s, 0], samples[s, 1], samples[s, 2])
+        candidates[j, 0], candidates[j, 1], candidates[j, 2] = x, y, z
+        owner[j] = e
+        nearest[j] = np.sqrt(nearest_point(x, y, z, foot[rp[r]], points, surface[2], scratch)[1])
+    return candidates, owner, nearest
 
 
 @njit(cache=True, error_model="numpy")
-def check_elements(poses, tolerance, obstacles, elements, patches, surface, voxels):
-    """One check of the posed elements (see :mod:`isf.collision` for what it computes).
+def reverse_clearance(measured, candidates, owner, poses, triangles, triangle_start, points, tree, probes):
+    """The clearance from clearance candidates ``candidates`` (C, 3) of elements ``owner`` (C,)
+    with their measured distances to the object ``measured`` (C,), m: the least of those and
+    of the exact distances from the ``probes`` object points nearest the best candidate of each
+    of two elements (those of the lowest indices among the candidates') to that element's
+    triangles (link frame, ``triangles[triangle_start[e]:triangle_start[e + 1]]``), >= 0."""
+    order = np.argsort(measured, kind="mergesort")
+    best = measured[order[0]]
+    first = np.full(len(poses), -1, np.int64)  # each element's best candidate
+    for j in order:
+        if first[owner[j]] < 0:
+            first[owner[j]] = j
+    best_d2, nearest = np.empty(probes), np.empty(probes, np.int64)
+    stack_node, stack_bound, stack_offset = search_scratch()
+    done = 0
+    for e in range(len(poses)):
+        j = first[e]
+        if j < 0 or done == 2:
+            continue
+        done += 1
+        kdtree.k_nearest(candidates[j, 0], candidates[j, 1], candidates[j, 2], best_d2, nearest, tree[0],
+                         tree[1], tree[2], tree[3], tree[4], tree[5], tree[6], tree[7], stack_node,
+                         stack_bound, stack_offset)
+        for i in range(probes):
+            o = nearest[i]
+            x, y, z = points[o, 0] - poses[e, 0, 3], points[o, 1] - poses[e, 1, 3], points[o, 2] - poses[e, 2, 3]
+            a = x * poses[e, 0, 0] + y * poses[e, 1, 0] + z * poses[e, 2, 0]
+            b = x * poses[e, 0, 1] + y * poses[e, 1, 1] + z * poses[e, 2, 1]
+            c = x * poses[e, 0, 2] + y * poses[e, 1, 2] + z * poses[e, 2, 2]
+            d2 = np.inf
+            for f in range(triangle_start[e], triangle_start[e + 1]):
+                d2 = min(d2, triangle_distance2(a, b, c, triangles, f))
+            best = min(best, np.sqrt(d2))
+    return max(best, 0.0)
+
+
+@njit(cache=True, error_model="numpy")
+def check_elements(T, link_R, link_p, tolerance, obstacles, elements, patches, surface, voxels, interiors):
+    """One check of the elements at palm pose ``T`` (4, 4), their links at rotations ``link_R``
+    (L, 3, 3) and positions ``link_p`` (L, 3) in the gripper frame (see :mod:`isf.collision` for
+    what it computes).
 
     Args:
-        poses: T_object_element of every element, (E, 4, 4).
         tolerance: penetration tolerated, metres.
         obstacles: ``(normals (P, 3), offsets (P,))`` of the obstacle planes.
         elements: ``(hull, hull_start, sphere, radius, contact, kind, bounds, planes,
-            plane_start, element_patches, last_patch)``: hull vertices (H, 3) of element ``e`` at
-            ``hull_start[e]:hull_start[e + 1]``; bounding sphere centres (E, 3) and radii (E,);
-            contact flags (E,); kind (E,) (0 open, 1 closed convex, 2 closed non-convex); link
-            frame boxes (E, 2, 3); convex face planes (F, 4) at ``plane_start[e]:plane_start[e + 1]``;
-            patches ``element_patches[e]:element_patches[e + 1]``; the patch of the last vertex (E,).
+            plane_start, element_patches, last_patch, frames)``: hull vertices (H, 3) of element
+            ``e`` at ``hull_start[e]:hull_start[e + 1]``; bounding sphere centres (E, 3) and radii
+            (E,); contact flags (E,); kind (E,) (0 open, 1 closed convex, 2 closed non-convex);
+            link frame boxes (E, 2, 3); convex face planes (F, 4) at
+            ``plane_start[e]:plane_start[e + 1]``; patches ``element_patches[e]:element_patches[e + 1]``;
+            the patch of the last vertex (E,); the link of each element (E,).
         patches: ``(samples, offsets, margin, patch_start, patch_size, patch_radius,
             patch_margin, box_lo, box_hi)``: the samples of every patch (S, 3) at
             ``patch_start[p]:patch_start[p] + patch_size[p]``, its centre first, link frame; their
@@ -454,23 +525,32 @@ def check_elements(poses, tolerance, obstacles, elements, patches, surface, voxe
             own points (the probes inside elements) sorted by x, and their x; its box; the cover
             (m) and the neighbour count of the estimate.
         voxels: ``(present, table, steps, lo, size)`` of :class:`isf.collision_voxels.SurfaceVoxels`.
+        interiors: the non-convex closed elements' hull planes, grids and surfaces (with their
+            trees) stacked, each with its start per element (:func:`isf.collision._packed`).
 
     Returns:
-        ``(depth, where, clearance, act, summary, candidates, candidate_owner, candidate_guess,
-        estimates)``: depth (E,) and its obstacle (E,) (plane index, P for the object, -1 for
-        none) so far; the obstacle planes' clearance, m; the active elements (A,) and their
-        :func:`_summaries` (A, 6); the clearance candidates (C, 3), their elements (C,) and the
-        object points nearest their patch centres (C,) (none when the clearance is 0 already);
-        the number of exact estimates made.
+        ``(poses, depth, where, clearance, candidates, owner, nearest, estimates)``: the elements'
+        poses (E, 4, 4); each element's depth (E,) and its obstacle (E,) (plane index, P for the
+        object, -1 for none); the clearance so far (0, or the obstacle planes'), m; the clearance
+        candidates (C, 3) (none when the clearance is 0), their elements (C,) and distances to
+        the nearest object point (C,); the number of exact estimates made.
     """
+    frames = elements[11]
+    poses = np.zeros((len(frames), 4, 4))
+    for e in range(len(frames)):
+        f = frames[e]
+        for i in range(4):
+            for j in range(3):
+                poses[e, i, j] = T[i, 0] * link_R[f, 0, j] + T[i, 1] * link_R[f, 1, j] + T[i, 2] * link_R[f, 2, j]
+            poses[e, i, 3] = T[i, 0] * link_p[f, 0] + T[i, 1] * link_p[f, 1] + T[i, 2] * link_p[f, 2] + T[i, 3]
     stack_node, stack_bound, stack_offset = search_scratch()
     search = (np.empty(surface[8]), np.empty(surface[8], np.int64), stack_node, stack_bound, stack_offset)
     depth, where, clearance, deep, apart, clearance_bound, estimates = _planes_and_spheres(
         poses, obstacles, elements, surface, voxels, search)
     act = np.flatnonzero(deep | apart)
-    none = (np.empty((0, 3)), np.empty(0, np.int64), np.empty(0, np.int64))
+    none = (np.empty((0, 3)), np.empty(0, np.int64), np.empty(0))
     if len(act) == 0:
-        return depth, where, clearance, act, np.zeros((0, 6)), none[0], none[1], none[2], estimates
+        return poses, depth, where, clearance, none[0], none[1], none[2], estimates
     patch, pk, need, outside_patch, sd, plane, nearest, foot, count = _patch_centres(
         poses, act, deep, apart, clearance_bound, elements, patches, surface, voxels, search)
     estimates += count
@@ -480,10 +560,11 @@ def check_elements(poses, tolerance, obstacles, elements, patches, surface, voxe
     count, deepest = _refine(poses, tolerance, depth.max(), clearance, act, deep, outside_patch, row, pred,
                              lo, hi, seg, elements, patches, surface, search)
     estimates += count
-    summary = _summaries(poses, act, deep, outside_patch, pred, lo, hi, seg, last_row, deepest, elements,
-                         surface)
+    clearance = _object_depths(poses, tolerance, act, deep, outside_patch, pred, lo, hi, seg, last_row,
+                               deepest, depth, where, clearance, elements, surface, interiors,
+                               len(obstacles[1]))
     if clearance == 0.0:
-        return depth, where, clearance, act, summary, none[0], none[1], none[2], estimates
-    candidates, owner, guess = _clearance_candidates(poses, act, apart, row, rp, pk, foot, patches[0],
-                                                     surface[0])
-    return depth, where, clearance, act, summary, candidates, owner, guess, estimates
+        return poses, depth, where, clearance, none[0], none[1], none[2], estimates
+    candidates, owner, nearest = _clearance_candidates(poses, act, apart, row, rp, pk, foot, patches[0],
+                                                       surface, search)
+    return poses, depth, where, clearance, candidates, owner, nearest, estimates
