@@ -238,23 +238,23 @@ class CollisionChecker:
         # random samples leave gaps a few spacings wide; 0 for a bare point cloud).
         self._cover = 3.0 * self._surface.spacing if obj.is_mesh else 0.0
         voxels = self._voxels
-        probes = np.ascontiguousarray(self._points[np.argsort(self._points[:, 0], kind="stable")])
         self._kernel_args = (
             (np.array([p.normal for p in self.obstacles]).reshape(-1, 3),
              np.array([p.offset for p in self.obstacles], dtype=float)),
             tuple(packed[name] for name in _ELEMENT_ARRAYS),
             tuple(packed[name] for name in _PATCH_ARRAYS),
-            (self._surface.points, self._surface.normals, self._surface.tree.tree, probes, probes[:, 0].copy(),
-             self._lo, self._hi, self._cover, min(NEIGHBOURS, len(self._surface.points))),
+            (self._surface.points, self._surface.normals, self._surface.tree.tree, self._lo, self._hi,
+             self._cover, min(NEIGHBOURS, len(self._surface.points))),
+            _probe_grid(self._points),
             (False, np.zeros((1, 1, 1), np.int64), np.zeros((1, 1, 1), np.int32), np.zeros(3), 1.0)
             if voxels is None else (True, voxels.table, voxels.steps, voxels.lo, voxels.size),
             tuple(packed[name] for name in _INTERIOR_ARRAYS))
         self.estimates = 0
         """Exact tangent-plane estimates of the object's surface made by the checks so far (a
         cost diagnostic)."""
-        self._point = coal.Sphere(0.0)
+        self._point, self._at = coal.Sphere(0.0), coal.Transform3s()  # a point, and where it is
         self._identity = coal.Transform3s()
-        self._distance_request = coal.DistanceRequest()
+        self._distance_request, self._distance = coal.DistanceRequest(), coal.DistanceResult()
 
     # ------------------------------------------------------------------- check
     def _check_inputs(self, T_object_gripper, q) -> tuple[np.ndarray, np.ndarray]:
@@ -320,8 +320,10 @@ class CollisionChecker:
         measured = nearest.copy()
         if self._mesh is not None:
             for j in np.argsort(nearest, kind="stable")[:_CLEARANCE_EXACT]:
-                measured[j] = coal.distance(self._point, coal.Transform3s(np.eye(3), points[j]), self._mesh,
-                                            self._identity, self._distance_request, coal.DistanceResult())
+                self._at.setTranslation(points[j])
+                self._distance.clear()
+                measured[j] = coal.distance(self._point, self._at, self._mesh, self._identity,
+                                            self._distance_request, self._distance)
         return reverse_clearance(measured, points, owner, poses, self._triangles, self._triangle_start,
                                  self._surface.points, self._surface.tree.tree,
                                  min(_REVERSE_PROBES, len(self._surface.points)))
@@ -387,6 +389,20 @@ _INTERIOR_ARRAYS = ("_hull_planes", "_hull_plane_start", "_field", "_field_start
                     "_node_left", "_node_right")
 _PATCH_ARRAYS = ("_samples", "_offsets", "_margin", "_patch_start", "_patch_size", "_patch_radius",
                  "_patch_margin", "_box_lo", "_box_hi")
+
+
+def _probe_grid(points: np.ndarray, cells: int = 32) -> tuple:
+    """The object points (M, 3) in a grid of cubic cells, about ``cells`` along the box's longest
+    side: ``(points by cell, cell_start, corner, edge, shape)`` as
+    :func:`isf.collision_kernel.check_elements` takes them."""
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    cell = max(float((hi - lo).max()) / cells, 1e-3)
+    shape = np.floor((hi - lo) / cell).astype(np.int64) + 1
+    key = np.minimum(np.floor((points - lo) / cell).astype(np.int64), shape - 1)
+    index = (key[:, 0] * shape[1] + key[:, 1]) * shape[2] + key[:, 2]
+    order = np.argsort(index, kind="stable")
+    start = np.r_[0, np.cumsum(np.bincount(index, minlength=int(np.prod(shape))))]
+    return np.ascontiguousarray(points[order]), start, lo, cell, shape
 
 
 def _stacked(parts: list[np.ndarray], dtype=float) -> tuple[np.ndarray, np.ndarray]:

@@ -57,16 +57,16 @@ def _estimate_at(x, y, z, surface, search):
 def _planes_and_spheres(poses, obstacles, elements, surface, voxels, search):
     """The obstacle planes' depths and clearance, and which elements need their samples tested.
 
-    Returns ``(depth, where, clearance, deep, apart, clearance_bound, estimates)``: per element
-    its depth below the planes and the plane (-1 for none), the planes' clearance; *deep*: its
+    Returns ``(depth, where, clearance, deep, apart, clearance_bound, lo, hi, estimates)``: per
+    element its depth below the planes and the plane (-1 for none), the planes' clearance; *deep*: its
     box overlaps the object's box (and, for a mesh object, voxels not certainly outside) and its
     bounding sphere may reach inside; *apart*: a non-contact element that may lie nearer to the
     object than the clearance bound (the planes' clearance and the nearest object point from
-    every non-contact element's sphere centre plus its radius).
+    every non-contact element's sphere centre plus its radius); the box of its hull (E, 3).
     """
     normals_p, offsets_p = obstacles
     hull, hull_start, sphere, radius, contact = elements[0], elements[1], elements[2], elements[3], elements[4]
-    olo, ohi, cover = surface[5], surface[6], surface[7]
+    olo, ohi, cover = surface[3], surface[4], surface[5]
     has_voxels, table, vlo, vsize = voxels[0], voxels[1], voxels[3], voxels[4]
     n_el = len(poses)
     depth, where = np.zeros(n_el), np.full(n_el, -1, np.int64)
@@ -114,7 +114,7 @@ def _planes_and_spheres(poses, obstacles, elements, surface, voxels, search):
     for e in range(n_el):
         deep[e] = near[e] and lower[e] < CULL_MARGIN
         apart[e] = not contact[e] and lower[e] < clearance_bound
-    return depth, where, clearance, deep, apart, clearance_bound, estimates
+    return depth, where, clearance, deep, apart, clearance_bound, elo, ehi, estimates
 
 
 @njit(cache=True, error_model="numpy")
@@ -135,7 +135,7 @@ def _patch_centres(poses, act, deep, apart, clearance_bound, elements, patches, 
     """
     element_patches, last_patch = elements[9], elements[10]
     samples, patch_start, patch_radius = patches[0], patches[3], patches[5]
-    olo, ohi = surface[5], surface[6]
+    olo, ohi = surface[3], surface[4]
     has_voxels, table, steps, vlo, vsize = voxels
     n_patch = 0
     for k in range(len(act)):
@@ -277,93 +277,92 @@ def _evaluate_row(r, e, poses, row, pred, lo, hi, samples, surface, search):
     pred[r] = lo[r] = hi[r] = _estimate_at(x, y, z, surface, search)[0]
 
 
-@njit(cache=True, error_model="numpy")
-def _deepest_looking(mask, pred, seg, want):
-    """Mark in ``want`` the :data:`DEEPEST_CANDIDATES` rows of ``mask`` with the lowest ``pred``
-    (ties: the earlier row) of each element (rows ``seg[k]:seg[k + 1]``)."""
-    top = np.empty(DEEPEST_CANDIDATES, np.int64)
-    for k in range(len(seg) - 1):
-        n = 0
-        for r in range(seg[k], seg[k + 1]):
-            if not mask[r] or (n == DEEPEST_CANDIDATES and pred[r] >= pred[top[n - 1]]):
-                continue
-            j = min(n, DEEPEST_CANDIDATES - 1)
-            while j > 0 and pred[top[j - 1]] > pred[r]:
-                top[j] = top[j - 1]
-                j -= 1
-            top[j] = r
-            n = min(n + 1, DEEPEST_CANDIDATES)
-        for j in range(n):
-            want[top[j]] = True
-
-
-@njit(cache=True, error_model="numpy")
-def _deepest_known(pred, lo, hi, seg, out):
-    """Per element: the depth of its deepest exactly evaluated row (``lo == hi``), >= 0."""
-    for k in range(len(seg) - 1):
-        d = 0.0
-        for r in range(seg[k], seg[k + 1]):
-            if lo[r] == hi[r] and -pred[r] > d:
-                d = -pred[r]
-        out[k] = d
+@njit(cache=True, error_model="numpy", inline="always")
+def _offer(top, n, r, pred):
+    """Offer row ``r`` to ``top[:n]``, the rows with the lowest ``pred`` so far in order (ties: the
+    earlier row), at most ``len(top)``; returns the new count."""
+    if n == len(top) and pred[r] >= pred[top[n - 1]]:
+        return n
+    j = min(n, len(top) - 1)
+    while j > 0 and pred[top[j - 1]] > pred[r]:
+        top[j] = top[j - 1]
+        j -= 1
+    top[j] = r
+    return min(n + 1, len(top))
 
 
 @njit(cache=True, error_model="numpy")
 def _refine(poses, tolerance, plane_depth, clearance, act, deep, outside_patch, row, pred, lo, hi, seg,
-           elements, patches, surface, search):
+            elements, patches, surface, search):
     """Evaluate exactly the rows that can change a verdict, the deepest value, whether a
     non-contact element touches, or whether an element lies wholly inside.
 
-    The first round takes each element's deepest-looking candidates for the verdict, the value
-    and touching; later rounds all remaining verdict candidates of unsettled elements and the
-    value's candidates while the deepest value grows. Returns the number of rows evaluated and,
-    per active element, the depth of its deepest evaluated row.
+    The first round takes each element's :data:`DEEPEST_CANDIDATES` deepest-looking (lowest
+    predicted) candidates for the verdict, the value and touching; later rounds all remaining
+    verdict candidates of unsettled elements and the value's candidates while the deepest value
+    grows. Every round takes all rows that may lie outside an element none of whose rows (nor
+    settled patches) lies certainly outside. Returns the number of rows evaluated and, per
+    active element, the depth of its deepest evaluated row.
     """
     contact, samples = elements[4], patches[0]
-    n_act, n_rows = len(act), len(row)
-    deepest, now = np.empty(n_act), np.empty(n_act)
-    _deepest_known(pred, lo, hi, seg, deepest)
+    n_act = len(act)
+    deepest, now = np.zeros(n_act), np.zeros(n_act)
+    for k in range(n_act):
+        for r in range(seg[k], seg[k + 1]):
+            if lo[r] == hi[r]:
+                deepest[k] = max(deepest[k], -pred[r])
     improving = np.ones(n_act, np.bool_)
-    outside, touching = np.zeros(n_act, np.bool_), np.zeros(n_act, np.bool_)
-    value, verdict, touch = np.zeros(n_rows, np.bool_), np.zeros(n_rows, np.bool_), np.zeros(n_rows, np.bool_)
-    want = np.zeros(n_rows, np.bool_)
+    want = np.zeros(len(row), np.bool_)
+    top_value = np.empty(DEEPEST_CANDIDATES, np.int64)
+    top_verdict, top_touch = np.empty(DEEPEST_CANDIDATES, np.int64), np.empty(DEEPEST_CANDIDATES, np.int64)
     estimates = 0
     for round_ in range(ROUNDS):
         overall = plane_depth
-        unknown_any = False
         for k in range(n_act):
             overall = max(overall, deepest[k])
-            outside[k], touching[k] = outside_patch[k], False
-            for r in range(seg[k], seg[k + 1]):
-                touching[k] |= lo[r] == hi[r] and pred[r] < 0.0  # an evaluated row inside
-                outside[k] |= lo[r] >= 0.0  # a row certainly outside
-        for k in range(n_act):
-            e = act[k]
-            for r in range(seg[k], seg[k + 1]):
-                unknown = deep[e] and lo[r] != hi[r]
-                unknown_any |= unknown
-                verdict[r] = unknown and deepest[k] <= tolerance and -lo[r] > tolerance
-                value[r] = unknown and -pred[r] > overall + DEPTH_RESOLUTION and improving[k]
-                touch[r] = (round_ == 0 and clearance > 0.0 and unknown and not contact[e]
-                            and not touching[k] and lo[r] < 0.0)
-                want[r] = (unknown and not outside[k] and hi[r] >= 0.0  # wholly inside?
-                           or round_ > 0 and verdict[r])
-        if not unknown_any:
-            break
-        _deepest_looking(value, pred, seg, want)
-        if round_ == 0:
-            _deepest_looking(verdict, pred, seg, want)
-            _deepest_looking(touch, pred, seg, want)
+        unknown_any = False
         count = 0
         for k in range(n_act):
+            e = act[k]
+            now[k] = deepest[k]
+            if not deep[e]:
+                continue
+            outside, touching, unknown = outside_patch[k], False, False
+            for r in range(seg[k], seg[k + 1]):
+                touching |= lo[r] == hi[r] and pred[r] < 0.0  # an evaluated row inside
+                outside |= lo[r] >= 0.0  # a row certainly outside
+                unknown |= lo[r] != hi[r]
+            if not unknown:
+                continue
+            unknown_any = True
+            n_value = n_verdict = n_touch = 0
+            for r in range(seg[k], seg[k + 1]):
+                if lo[r] == hi[r]:
+                    continue
+                verdict = deepest[k] <= tolerance and -lo[r] > tolerance
+                if -pred[r] > overall + DEPTH_RESOLUTION and improving[k]:
+                    n_value = _offer(top_value, n_value, r, pred)
+                if round_ == 0:
+                    if verdict:
+                        n_verdict = _offer(top_verdict, n_verdict, r, pred)
+                    if clearance > 0.0 and not contact[e] and not touching and lo[r] < 0.0:
+                        n_touch = _offer(top_touch, n_touch, r, pred)
+                want[r] = (not outside and hi[r] >= 0.0) or (round_ > 0 and verdict)  # wholly inside?
+            for j in range(n_value):
+                want[top_value[j]] = True
+            for j in range(n_verdict):
+                want[top_verdict[j]] = True
+            for j in range(n_touch):
+                want[top_touch[j]] = True
             for r in range(seg[k], seg[k + 1]):
                 if want[r]:
-                    _evaluate_row(r, act[k], poses, row, pred, lo, hi, samples, surface, search)
+                    want[r] = False
+                    _evaluate_row(r, e, poses, row, pred, lo, hi, samples, surface, search)
+                    now[k] = max(now[k], -pred[r])
                     count += 1
-        estimates += count
-        if count == 0:
+        if not unknown_any or count == 0:
             break
-        _deepest_known(pred, lo, hi, seg, now)
+        estimates += count
         for k in range(n_act):
             improving[k] = now[k] > deepest[k]
             deepest[k] = now[k]
@@ -371,42 +370,49 @@ def _refine(poses, tolerance, plane_depth, clearance, act, deep, outside_patch, 
 
 
 @njit(cache=True, error_model="numpy")
-def _object_depth(poses, e, tolerance, elements, surface, interiors):
-    """Deepest object point inside closed element ``e`` (0 for an open one), metres: of the
-    object points within the x span of its box (a bound of it), by
-    :func:`isf.collision_elements.convex_depth` or
-    :func:`isf.collision_elements.non_convex_depth`."""
+def _object_depth(poses, e, box_lo, box_hi, tolerance, elements, probes, interiors, scratch):
+    """Deepest object point inside closed element ``e`` (0 for an open one), metres, by
+    :func:`isf.collision_elements.convex_depth` or :func:`isf.collision_elements.non_convex_depth`
+    of the object points in the grid cells that the box ``[box_lo, box_hi]`` of its hull overlaps
+    (every point inside it lies there). ``scratch``: room for all the points, (M, 3)."""
     kind, bounds, planes, plane_start = elements[5], elements[6], elements[7], elements[8]
-    probes, probes_x = surface[3], surface[4]
+    points, cell_start, grid_lo, cell, shape = probes
     if kind[e] == 0:
         return 0.0
-    reach = 1e-9
-    for j in range(3):
-        reach += abs(poses[e, 0, j]) * max(abs(bounds[e, 0, j]), abs(bounds[e, 1, j]))
-    first = np.searchsorted(probes_x, poses[e, 0, 3] - reach)
-    last = np.searchsorted(probes_x, poses[e, 0, 3] + reach, side="right")
+    first, last = np.empty(3, np.int64), np.empty(3, np.int64)
+    for d in range(3):
+        first[d] = min(max(int(np.floor((box_lo[d] - 1e-9 - grid_lo[d]) / cell)), 0), shape[d] - 1)
+        last[d] = min(max(int(np.floor((box_hi[d] + 1e-9 - grid_lo[d]) / cell)), 0), shape[d] - 1)
+    n = 0
+    for a in range(first[0], last[0] + 1):
+        for b in range(first[1], last[1] + 1):
+            base = (a * shape[1] + b) * shape[2]
+            for i in range(cell_start[base + first[2]], cell_start[base + last[2] + 1]):
+                scratch[n, 0], scratch[n, 1], scratch[n, 2] = points[i, 0], points[i, 1], points[i, 2]
+                n += 1
     if kind[e] == 1:
-        return convex_depth(probes[first:last], poses[e], bounds[e], planes[plane_start[e]:plane_start[e + 1]])
+        return convex_depth(scratch[:n], poses[e], bounds[e], planes[plane_start[e]:plane_start[e + 1]])
     hull_planes, hull_start, field, field_start, field_shape, field_lo, field_h, inner_start, node_start, \
         inner_points, inner_normals, tree_points, order, start, stop, axis, split, left, right = interiors
     a, b, f, n0, n1 = inner_start[e], inner_start[e + 1], field_start[e], node_start[e], node_start[e + 1]
     values = field[f:field_start[e + 1]].reshape((field_shape[e, 0], field_shape[e, 1], field_shape[e, 2]))
     tree = (tree_points[a:b], order[a:b], start[n0:n1], stop[n0:n1], axis[n0:n1], split[n0:n1], left[n0:n1],
             right[n0:n1])
-    return non_convex_depth(probes[first:last], poses[e], bounds[e], tolerance,
+    return non_convex_depth(scratch[:n], poses[e], bounds[e], tolerance,
                             hull_planes[hull_start[e]:hull_start[e + 1]], values, field_lo[e], field_h[e],
                             inner_points[a:b], inner_normals[a:b], tree, min(NEIGHBOURS, b - a))
 
 
 @njit(cache=True, error_model="numpy")
 def _object_depths(poses, tolerance, act, deep, outside_patch, pred, lo, hi, seg, last_row, deepest, depth,
-                   where, clearance, elements, surface, interiors, obstacle):
+                   where, clearance, box_lo, box_hi, elements, probes, interiors, obstacle):
     """Each deep element's depth into the object: that of its deepest evaluated row or object
     point inside it; when some row lies certainly inside and none (nor a settled patch)
     certainly outside and no object point lies inside it, it lies wholly inside and its last
     vertex tells. Updates ``depth`` and ``where`` (to ``obstacle``); returns the clearance, 0
     when a non-contact element penetrates."""
     contact = elements[4]
+    scratch = np.empty((len(probes[0]), 3))
     for k in range(len(act)):
         e = act[k]
         if not deep[e]:
@@ -415,7 +421,7 @@ def _object_depths(poses, tolerance, act, deep, outside_patch, pred, lo, hi, seg
         for r in range(seg[k], seg[k + 1]):
             inside_any |= (lo[r] == hi[r] and pred[r] < 0.0) or hi[r] < 0.0
             outside_any |= lo[r] >= 0.0
-        inner = _object_depth(poses, e, tolerance, elements, surface, interiors)
+        inner = _object_depth(poses, e, box_lo[e], box_hi[e], tolerance, elements, probes, interiors, scratch)
         if inside_any and not outside_any and inner == 0.0:
             d = max(0.0, -pred[last_row[k]])
         else:
@@ -500,7 +506,8 @@ def reverse_clearance(measured, candidates, owner, poses, triangles, triangle_st
 
 
 @njit(cache=True, error_model="numpy")
-def check_elements(T, link_R, link_p, tolerance, obstacles, elements, patches, surface, voxels, interiors):
+def check_elements(T, link_R, link_p, tolerance, obstacles, elements, patches, surface, probes, voxels,
+                   interiors):
     """One check of the elements at palm pose ``T`` (4, 4), their links at rotations ``link_R``
     (L, 3, 3) and positions ``link_p`` (L, 3) in the gripper frame (see :mod:`isf.collision` for
     what it computes).
@@ -520,10 +527,13 @@ def check_elements(T, link_R, link_p, tolerance, obstacles, elements, patches, s
             ``patch_start[p]:patch_start[p] + patch_size[p]``, its centre first, link frame; their
             offsets from the centre (S, 3) and prediction bounds (S,) (0 at the centres); per patch
             its radius, the prediction bound at that radius and the box of its offsets (P, 3).
-        surface: ``(points, normals, tree, probes, probes_x, lo, hi, cover, neighbours)``: the
-            object's tangent planes and their tree (:attr:`isf.nearest.NearestPoints.tree`); its
-            own points (the probes inside elements) sorted by x, and their x; its box; the cover
-            (m) and the neighbour count of the estimate.
+        surface: ``(points, normals, tree, lo, hi, cover, neighbours)``: the object's tangent
+            planes and their tree (:attr:`isf.nearest.NearestPoints.tree`), its box, the cover (m)
+            and the neighbour count of the estimate.
+        probes: ``(points, cell_start, lo, cell, shape)``: the object's own points (those tested
+            inside elements) in a grid of cubic cells, edge ``cell``, corner ``lo``, ``shape``
+            cells: those of cell ``(a, b, c)`` are ``points[cell_start[i]:cell_start[i + 1]]``
+            with ``i = (a * shape[1] + b) * shape[2] + c``.
         voxels: ``(present, table, steps, lo, size)`` of :class:`isf.collision_voxels.SurfaceVoxels`.
         interiors: the non-convex closed elements' hull planes, grids and surfaces (with their
             trees) stacked, each with its start per element (:func:`isf.collision._packed`).
@@ -544,8 +554,8 @@ def check_elements(T, link_R, link_p, tolerance, obstacles, elements, patches, s
                 poses[e, i, j] = T[i, 0] * link_R[f, 0, j] + T[i, 1] * link_R[f, 1, j] + T[i, 2] * link_R[f, 2, j]
             poses[e, i, 3] = T[i, 0] * link_p[f, 0] + T[i, 1] * link_p[f, 1] + T[i, 2] * link_p[f, 2] + T[i, 3]
     stack_node, stack_bound, stack_offset = search_scratch()
-    search = (np.empty(surface[8]), np.empty(surface[8], np.int64), stack_node, stack_bound, stack_offset)
-    depth, where, clearance, deep, apart, clearance_bound, estimates = _planes_and_spheres(
+    search = (np.empty(surface[6]), np.empty(surface[6], np.int64), stack_node, stack_bound, stack_offset)
+    depth, where, clearance, deep, apart, clearance_bound, box_lo, box_hi, estimates = _planes_and_spheres(
         poses, obstacles, elements, surface, voxels, search)
     act = np.flatnonzero(deep | apart)
     none = (np.empty((0, 3)), np.empty(0, np.int64), np.empty(0))
@@ -561,7 +571,7 @@ def check_elements(T, link_R, link_p, tolerance, obstacles, elements, patches, s
                              lo, hi, seg, elements, patches, surface, search)
     estimates += count
     clearance = _object_depths(poses, tolerance, act, deep, outside_patch, pred, lo, hi, seg, last_row,
-                               deepest, depth, where, clearance, elements, surface, interiors,
+                               deepest, depth, where, clearance, box_lo, box_hi, elements, probes, interiors,
                                len(obstacles[1]))
     if clearance == 0.0:
         return poses, depth, where, clearance, none[0], none[1], none[2], estimates
