@@ -48,13 +48,27 @@ How the samples are evaluated (what makes a check cheap)
     equal; tens of micrometres on curved contacts). A non-convex element screens many object
     points with a grid of its own estimate first.
 
+    In detail: the first refinement round evaluates, per element, the 8 lowest-predicted
+    samples that could decide the verdict, the 8 that could be deeper than the deepest known
+    one and, while no obstacle plane touches, the 8 that could make a non-contact element touch;
+    up to two later rounds evaluate all remaining verdict candidates of elements not yet deeper
+    than the tolerance, and the 8 deepest-looking while the element's deepest value still grows;
+    every round also evaluates the samples of an element none of whose samples (or settled
+    patches) lies certainly outside that may lie outside. Ties go to the earlier sample.
+    The whole body of a check, up to the exact distances to the object's mesh, is one compiled
+    call (``isf.collision_kernel.check_elements``) on arrays prepared once per gripper and
+    object; ``CollisionChecker.estimates`` counts the exact estimates made.
+
 Clearance
     the smallest distance between a *non-contact* element and the object (contact elements are
     meant to touch), and from *every* element's hull to each obstacle plane; 0 when a
     non-contact element touches or penetrates the object, or any element an obstacle. It is
-    measured both ways with exact point distances: from the element samples nearest the
-    object's samples to the object's mesh (coal; to the nearest object point for a point cloud),
-    and from the object samples nearest those to the element's triangles. It never reads below
+    measured both ways with exact point distances. The 48 samples of the non-contact elements
+    tested nearest to the object point nearest their patch's centre are the candidates; each
+    gets the distance to its nearest object sample, and the 3 nearest of them the distance to
+    the object's mesh (coal; none for a point cloud). Then, for the two elements of the lowest
+    indices among the candidates, the 4 object samples nearest the element's best candidate
+    get their distance to the element's triangles. It never reads below
     the true distance and exceeds it by at most about half the sample spacing of the nearest
     element (0.5 mm on elements up to 8 cm^2, more on larger ones, e.g. 2 mm on a 32 x 64 x 40 mm
     palm) plus half the object's point spacing for a point cloud.
@@ -73,7 +87,7 @@ import coal
 import numpy as np
 from numba import njit
 
-from .collision_elements import Element, bvh, even_samples, point_triangle_distance
+from .collision_elements import Element, even_samples, point_triangle_distance
 from .collision_kernel import PREDICTION_ERROR, PREDICTION_SLOPE, check_elements, reverse_clearance
 from .collision_surface import NEIGHBOURS, TangentPlanes, closed_mesh, mesh_memo
 from .collision_voxels import SurfaceVoxels
@@ -105,12 +119,22 @@ def _rigid(T):
             and abs(T[3, 3] - 1.0) <= 1e-12)
 
 
+def _bvh(vertices: np.ndarray, faces: np.ndarray) -> coal.BVHModelOBBRSS:
+    """A coal BVH of a triangle mesh."""
+    model = coal.BVHModelOBBRSS()
+    model.beginModel(len(faces), len(vertices))
+    model.addVertices(np.ascontiguousarray(vertices, dtype=np.float64))
+    model.addTriangles(np.ascontiguousarray(faces, dtype=np.int64))
+    model.endModel()
+    return model
+
+
 def object_bvh(obj: ObjectSurface) -> coal.BVHModelOBBRSS:
     """The coal BVH of a mesh object's triangles, built once per mesh (0.7 s for the 85k
     triangles of the benchmark bunny; see :func:`isf.collision_surface.mesh_memo`)."""
     memo = mesh_memo(obj)
     if "bvh" not in memo:
-        memo["bvh"] = bvh(np.asarray(obj.mesh_vertices, float), np.asarray(obj.mesh_faces, np.int64))
+        memo["bvh"] = _bvh(np.asarray(obj.mesh_vertices, float), np.asarray(obj.mesh_faces, np.int64))
     return memo["bvh"]
 
 
@@ -224,11 +248,10 @@ class CollisionChecker:
             raise GripperDescriptionError(gripper.name, [
                 f"a geometry belongs to link {link!r}, which the model lacks; fix its link name"
                 for link in missing])
-        self._links = links
         self._frame_ids = np.array([gripper.model.getFrameId(link) for link in links])
         self._obstacle_names = [p.name for p in self.obstacles] + ["object"]
         self._elements, packed, state = _prepared(gripper, links)
-        vars(self).update(packed)
+        self._triangles, self._triangle_start = packed["_triangles"], packed["_triangle_start"]
         self._surface = _object_surface(obj, state)
         self._points = np.asarray(obj.points, dtype=float)  # probes for object points inside elements
         self._lo, self._hi = self._surface.points.min(axis=0), self._surface.points.max(axis=0)
@@ -440,8 +463,8 @@ def _interiors(els: list[Element]) -> dict[str, np.ndarray]:
 
 
 def _packed(els: list[Element]) -> dict[str, np.ndarray]:
-    """Per-element arrays stacked for the compiled checks (the checker's attributes of these
-    names; :func:`isf.collision_kernel.check_elements` describes them), samples grouped by patch.
+    """Per-element arrays stacked for the compiled checks (:func:`isf.collision_kernel.check_elements`
+    describes them), samples grouped by patch; the elements' triangles (link frame) stacked.
 
     Every patch is a contiguous run of rows with its centre first; elements are contiguous
     runs of patches.

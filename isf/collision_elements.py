@@ -8,13 +8,14 @@ An element (one :class:`~isf.gripper.LinkGeometry`) carries, in its link frame:
   centre and stores its offset from it. A check evaluates the object's signed distance exactly
   at the centres only and predicts it at the other samples to first order (see
   :mod:`isf.collision`);
-* its convex hull (vertices and face planes), bounding sphere and coal BVH; for a closed element
-  the description of its inside (face planes when convex, else a tangent-plane surface).
+* its convex hull (vertices and face planes), bounding sphere and mesh; for a closed element
+  the description of its inside (face planes when convex, else a tangent-plane surface and a
+  grid of its estimate), with compiled tests of object points inside it
+  (:func:`convex_depth`, :func:`non_convex_depth`) and exact point-triangle distances.
 """
 
 from __future__ import annotations
 
-import coal
 import numpy as np
 import trimesh
 from numba import njit
@@ -94,16 +95,6 @@ def point_triangle_distance(points: np.ndarray, triangles: np.ndarray) -> np.nda
     """Exact distance of each point (M, 3) to the nearest of the triangles (F, 3, 3), metres (M,)."""
     return _nearest_triangle_distances(np.ascontiguousarray(points, dtype=np.float64),
                                        np.ascontiguousarray(triangles, dtype=np.float64))
-
-
-def bvh(vertices: np.ndarray, faces: np.ndarray) -> coal.BVHModelOBBRSS:
-    """A coal BVH of a triangle mesh."""
-    model = coal.BVHModelOBBRSS()
-    model.beginModel(len(faces), len(vertices))
-    model.addVertices(np.ascontiguousarray(vertices, dtype=np.float64))
-    model.addTriangles(np.ascontiguousarray(faces, dtype=np.int64))
-    model.endModel()
-    return model
 
 
 def patches(samples: np.ndarray, area: float, count: int) -> tuple[np.ndarray, np.ndarray]:
@@ -278,7 +269,6 @@ class Element:
                 self.planes = np.c_[n, np.einsum("ij,ij->i", n, mesh.triangles[:, 0])]
             else:
                 self.surface = TangentPlanes(samples, normals * sign, np.sqrt(mesh.area / len(samples)))
-        self.bvh = bvh(mesh.vertices, mesh.faces)
         self.contact = False
         self.field = None if self.surface is None else SignedDistanceGrid(self.surface, self.bounds)
 

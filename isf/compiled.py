@@ -3,12 +3,12 @@
 The inner loops of isf are numba kernels: the moment sums and steps of IPFO
 (:mod:`isf.moment_kernels`), the nearest-point search (:mod:`isf.nearest`), the
 correspondence filters (:mod:`isf.correspondence`), the finger step's active set
-(:mod:`isf.box_qp`), the kinematics (:mod:`isf.chain`) and the repair's QP
-(:mod:`isf.dense_qp`). numba compiles a kernel at its first call and caches the
-machine code on disk (in the package's ``__pycache__`` folders, or in numba's user cache
-when those are read-only; ``NUMBA_CACHE_DIR`` moves it). So the first run after
-installing or upgrading isf compiles them (35-40 s on a 2-core machine), and
-later runs load them in under a second.
+(:mod:`isf.box_qp`), the kinematics (:mod:`isf.chain`), the repair's QP
+(:mod:`isf.dense_qp`) and the collision checks (``isf.collision_kernel``). numba compiles
+a kernel at its first call and caches the machine code on disk (in the package's
+``__pycache__`` folders, or in numba's user cache when those are read-only;
+``NUMBA_CACHE_DIR`` moves it). So the first run after installing or upgrading isf compiles
+them (35-40 s on a 2-core machine), and later runs load them in under a second.
 
 :func:`warm_up` compiles (or loads) every kernel on tiny inputs of the types the engine
 passes, so that the cost lands where the caller wants it: ``isf plan`` calls it before
@@ -30,6 +30,7 @@ from .correspondence import match
 from .dense_qp import solve_dense_qp
 from .fit import fit_many
 from .gripper import ContactSurface, Gripper, LinkGeometry
+from .nearest import NearestPoints
 from .object_surface import ObjectSurface
 
 __all__ = ["warm_up"]
@@ -76,9 +77,9 @@ def warm_up() -> float:
 
     It fits a one-joint gripper onto a small plane (the engine's own calls, so its own
     argument types), once more with IPFO pausing for Python (as it does for OSQP finger steps
-    and for joints without compiled kinematics), asks for nearest points as the collision
-    checks and the repair do, runs the repair's convex-element test and a small repair QP,
-    and the collision checks' voxel and element tests.
+    and for joints without compiled kinematics), asks for nearest points as the repair does,
+    runs the repair's convex-element test and a small repair QP, the voxel tests, and
+    collision checks of a convex and a non-convex element against a mesh, apart and pressed in.
     """
     start = time.perf_counter()
     grid = np.stack(np.meshgrid(*[np.linspace(-0.02, 0.02, 41)] * 2), axis=-1).reshape(-1, 2)
@@ -91,6 +92,7 @@ def warm_up() -> float:
     paused._chain = None  # as for joints without compiled kinematics: IPFO pauses for Pinocchio
     fit_many(paused, plane, T[None], np.array([[0.1]]))  # a tilted pad: the joint turns
     plane.nearest(plane.points[:2])  # as the collision repair asks
+    NearestPoints(plane.points).query_k(plane.points[:2], 6)
     match(plane, plane.points[:8] + [0.0, 0.0, 0.001], outlier_factor=3.0, outlier_floor=0.005,
           reject_duplicates=True)
     box = trimesh.creation.box(extents=(0.01, 0.01, 0.01))
