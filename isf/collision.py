@@ -281,7 +281,7 @@ class CollisionChecker:
 
     # ------------------------------------------------------------------- check
     def _check_inputs(self, T_object_gripper, q) -> tuple[np.ndarray, np.ndarray]:
-        T = np.asarray(T_object_gripper, dtype=float)
+        T = np.array(T_object_gripper, dtype=float, order="C")  # a writeable copy: one compiled type
         if T.shape != (4, 4) or not np.isfinite(T).all():
             raise InvalidInputError(f"T_object_gripper must be a finite 4x4 homogeneous transform, "
                                     f"got shape {T.shape}; pass the fitted palm pose")
