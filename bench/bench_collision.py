@@ -18,10 +18,13 @@ how many poses get a different ``collision_free`` or ``colliding_links``; a disa
 The Allegro hand is tagged as the tests do (``isf.registration.suggest_contacts`` and
 ``tag_urdf`` with ``suggest_approach``) into a temporary folder.
 
-Run from the repository root (the baseline worktree: ``git worktree add ../wt-collision-base
-451fa22``); ``--corpus`` and ``--baseline`` files are reused when they exist, so iterating
-re-runs neither the plans nor the slow baseline:
-    python bench/bench_collision.py [--base ../wt-collision-base] [--corpus /tmp/corpus.npz]
+Also reported: the exact tangent-plane estimates per check (``CollisionChecker.estimates``;
+"-" for a tree that does not count them).
+
+Run from the repository root (the baseline worktree, by default ``../wt-base`` beside the
+repository: ``git worktree add ../wt-base 99ad016``); ``--corpus`` and ``--baseline`` files are
+reused when they exist, so iterating re-runs neither the plans nor the slow baseline:
+    python bench/bench_collision.py [--base ../wt-base] [--corpus /tmp/corpus.npz]
                                     [--baseline /tmp/before.json] [--repeats 5] [--quick]
 """
 
@@ -146,7 +149,8 @@ def run_worker(corpus: Path, out: Path, repeats: int) -> None:
             setup = time.perf_counter() - t0
             T, q = data[key(gname, ospec) + "|T"], data[key(gname, ospec) + "|q"]
             reports = [checker.check(t, j) for t, j in zip(T, q)]
-            row = {"setup": setup, "n": len(T),
+            estimates = getattr(checker, "estimates", None)  # counted by newer trees only
+            row = {"setup": setup, "n": len(T), "estimates": None if estimates is None else estimates / len(T),
                    "free": [r.collision_free for r in reports],
                    "links": [list(r.colliding_links) for r in reports],
                    "penetration": [r.penetration for r in reports],
@@ -218,17 +222,19 @@ def timing_rows(before: dict, after: dict) -> list[list[object]]:
         b, a = before[key(gname, ospec)], after[key(gname, ospec)]
         tb, ta = statistics.median(b["per_check"]), statistics.median(a["per_check"])
         cb, ca = statistics.median(b["per_check_cpu"]), statistics.median(a["per_check_cpu"])
+        estimates = [f"{r['estimates']:.0f}" if r.get("estimates") is not None else "-" for r in (b, a)]
         rows.append([gname, object_spec(ospec), a["n"] // (2 if b["n"] > 60 else 1),
                      len(a["per_check"]), f"{tb * 1e3:.2f}", f"{ta * 1e3:.2f}",
                      f"{cb * 1e3:.2f}", f"{ca * 1e3:.2f}", f"{cb / ca:.1f}x",
-                     f"{b['setup'] * 1e3:.0f} / {a['setup'] * 1e3:.0f}"])
+                     f"{b['setup'] * 1e3:.0f} / {a['setup'] * 1e3:.0f}", " / ".join(estimates)])
     return rows
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--base", type=Path, default=Path("/work/wt-collision-base"),
-                        help="worktree of the original commit (git worktree add ... 451fa22)")
+    parser.add_argument("--base", type=Path, default=_common.REPO.parent / "wt-base",
+                        help="worktree of the original commit (default ../wt-base: git worktree "
+                             "add ../wt-base 99ad016)")
     parser.add_argument("--corpus", type=Path, default=None,
                         help="pose corpus file: reused when it exists, else built and saved")
     parser.add_argument("--repeats", type=int, default=5, help="timing passes (median reported)")
@@ -259,7 +265,8 @@ def main() -> None:
         "### Time per check (median over passes of the mean per check over the fitted grasps)",
         _common.markdown_table(["gripper", "object", "poses", "passes", "before ms (wall)",
                                 "after ms (wall)", "before ms (CPU)", "after ms (CPU)",
-                                "speed-up (CPU)", "setup ms before / after"],
+                                "speed-up (CPU)", "setup ms before / after",
+                                "estimates per check before / after (whole corpus)"],
                                timing_rows(before, after)),
         "Wall time counts waiting for a core on a shared machine; CPU time (process time) does not.",
         "### Verdict agreement over the corpus (fitted grasps + perturbed copies)",

@@ -48,13 +48,27 @@ How the samples are evaluated (what makes a check cheap)
     equal; tens of micrometres on curved contacts). A non-convex element screens many object
     points with a grid of its own estimate first.
 
+    In detail: the first refinement round evaluates, per element, the 8 lowest-predicted
+    samples that could decide the verdict, the 8 that could be deeper than the deepest known
+    one and, while no obstacle plane touches, the 8 that could make a non-contact element touch;
+    up to two later rounds evaluate all remaining verdict candidates of elements not yet deeper
+    than the tolerance, and the 8 deepest-looking while the element's deepest value still grows;
+    every round also evaluates the samples of an element none of whose samples (or settled
+    patches) lies certainly outside that may lie outside. Ties go to the earlier sample.
+    The whole body of a check, up to the exact distances to the object's mesh, is one compiled
+    call (``isf.collision_kernel.check_elements``) on arrays prepared once per gripper and
+    object; ``CollisionChecker.estimates`` counts the exact estimates made.
+
 Clearance
     the smallest distance between a *non-contact* element and the object (contact elements are
     meant to touch), and from *every* element's hull to each obstacle plane; 0 when a
     non-contact element touches or penetrates the object, or any element an obstacle. It is
-    measured both ways with exact point distances: from the element samples nearest the
-    object's samples to the object's mesh (coal; to the nearest object point for a point cloud),
-    and from the object samples nearest those to the element's triangles. It never reads below
+    measured both ways with exact point distances. The 48 samples of the non-contact elements
+    tested nearest to the object point nearest their patch's centre are the candidates; each
+    gets the distance to its nearest object sample, and the 3 nearest of them the distance to
+    the object's mesh (coal; none for a point cloud). Then, for the two elements of the lowest
+    indices among the candidates, the 4 object samples nearest the element's best candidate
+    get their distance to the element's triangles. It never reads below
     the true distance and exceeds it by at most about half the sample spacing of the nearest
     element (0.5 mm on elements up to 8 cm^2, more on larger ones, e.g. 2 mm on a 32 x 64 x 40 mm
     palm) plus half the object's point spacing for a point cloud.
@@ -71,10 +85,11 @@ from dataclasses import dataclass
 
 import coal
 import numpy as np
-import pinocchio as pin
+from numba import njit
 
-from .collision_elements import Element, bvh, even_samples, point_triangle_distance
-from .collision_surface import TangentPlanes, closed_mesh, mesh_memo
+from .collision_elements import Element, even_samples, point_triangle_distance
+from .collision_kernel import PREDICTION_ERROR, PREDICTION_SLOPE, check_elements, reverse_clearance
+from .collision_surface import NEIGHBOURS, TangentPlanes, closed_mesh, mesh_memo
 from .collision_voxels import SurfaceVoxels
 from .exceptions import GripperDescriptionError, InvalidInputError
 from .gripper import Gripper
@@ -87,18 +102,31 @@ logger = logging.getLogger(__name__)
 _OBJECT_SPACING = 0.001  # resampling of a closed mesh object, m
 _MAX_OBJECT_SAMPLES = 50000
 _ON_SURFACE = 1e-6  # a contact point this close to an element lies on it, m
-# First-order prediction of the signed distance at a sample from its patch centre is trusted to
-# within _PREDICTION_ERROR + _PREDICTION_SLOPE * (distance to the centre).
-_PREDICTION_ERROR = 1e-4  # m
-_PREDICTION_SLOPE = 0.5
-_DEEPEST_CANDIDATES = 8  # samples evaluated exactly to find an element's deepest one
-_CLEARANCE_CANDIDATES = 48  # nearest-looking samples whose object distance is measured
-_CLEARANCE_EXACT = 3  # of those, how many get the exact distance to a mesh object (coal)
-_DEPTH_RESOLUTION = 5e-5  # deeper-looking samples than the deepest evaluated get evaluated, m
-_CLEARANCE_PATCHES = 2  # patches nearest the object whose samples are candidates for clearance
+_CLEARANCE_EXACT = 3  # of the clearance candidates, how many get the exact distance to a mesh object (coal)
 _REVERSE_PROBES = 4  # object samples whose distance to the nearest-looking elements is measured
-_CULL_MARGIN = 5e-4  # an element whose bounding sphere is this far outside the object is outside, m
-_VOXEL_MARGIN = 2e-3  # a box this far inside voxels outside a mesh object is outside it, m
+
+
+@njit(cache=True, error_model="numpy")
+def _rigid(T):
+    """Is the finite 4x4 ``T`` a rigid transform: rotation orthonormal to 1e-6, last row
+    ``[0 0 0 1]`` to 1e-12?"""
+    for i in range(3):
+        for j in range(3):
+            dot = T[0, i] * T[0, j] + T[1, i] * T[1, j] + T[2, i] * T[2, j]
+            if abs(dot - (1.0 if i == j else 0.0)) > 1e-6:
+                return False
+    return (abs(T[3, 0]) <= 1e-12 and abs(T[3, 1]) <= 1e-12 and abs(T[3, 2]) <= 1e-12
+            and abs(T[3, 3] - 1.0) <= 1e-12)
+
+
+def _bvh(vertices: np.ndarray, faces: np.ndarray) -> coal.BVHModelOBBRSS:
+    """A coal BVH of a triangle mesh."""
+    model = coal.BVHModelOBBRSS()
+    model.beginModel(len(faces), len(vertices))
+    model.addVertices(np.ascontiguousarray(vertices, dtype=np.float64))
+    model.addTriangles(np.ascontiguousarray(faces, dtype=np.int64))
+    model.endModel()
+    return model
 
 
 def object_bvh(obj: ObjectSurface) -> coal.BVHModelOBBRSS:
@@ -106,7 +134,7 @@ def object_bvh(obj: ObjectSurface) -> coal.BVHModelOBBRSS:
     triangles of the benchmark bunny; see :func:`isf.collision_surface.mesh_memo`)."""
     memo = mesh_memo(obj)
     if "bvh" not in memo:
-        memo["bvh"] = bvh(np.asarray(obj.mesh_vertices, float), np.asarray(obj.mesh_faces, np.int64))
+        memo["bvh"] = _bvh(np.asarray(obj.mesh_vertices, float), np.asarray(obj.mesh_faces, np.int64))
     return memo["bvh"]
 
 
@@ -220,11 +248,10 @@ class CollisionChecker:
             raise GripperDescriptionError(gripper.name, [
                 f"a geometry belongs to link {link!r}, which the model lacks; fix its link name"
                 for link in missing])
-        self._links = links
-        self._frame_ids = [gripper.model.getFrameId(link) for link in links]
-        self._data = gripper.model.createData()
+        self._frame_ids = np.array([gripper.model.getFrameId(link) for link in links])
+        self._obstacle_names = [p.name for p in self.obstacles] + ["object"]
         self._elements, packed, state = _prepared(gripper, links)
-        vars(self).update(packed)
+        self._triangles, self._triangle_start = packed["_triangles"], packed["_triangle_start"]
         self._surface = _object_surface(obj, state)
         self._points = np.asarray(obj.points, dtype=float)  # probes for object points inside elements
         self._lo, self._hi = self._surface.points.min(axis=0), self._surface.points.max(axis=0)
@@ -233,22 +260,32 @@ class CollisionChecker:
         # Distance from the object's surface to its nearest sample, at most (a generous guess:
         # random samples leave gaps a few spacings wide; 0 for a bare point cloud).
         self._cover = 3.0 * self._surface.spacing if obj.is_mesh else 0.0
-        self._point = coal.Sphere(0.0)
+        voxels = self._voxels
+        self._kernel_args = (
+            (np.array([p.normal for p in self.obstacles]).reshape(-1, 3),
+             np.array([p.offset for p in self.obstacles], dtype=float)),
+            tuple(packed[name] for name in _ELEMENT_ARRAYS),
+            tuple(packed[name] for name in _PATCH_ARRAYS),
+            (self._surface.points, self._surface.normals, self._surface.tree.tree, self._lo, self._hi,
+             self._cover, min(NEIGHBOURS, len(self._surface.points))),
+            _probe_grid(self._points),
+            (False, np.zeros((1, 1, 1), np.int64), np.zeros((1, 1, 1), np.int32), np.zeros(3), 1.0)
+            if voxels is None else (True, voxels.table, voxels.steps, voxels.lo, voxels.size),
+            tuple(packed[name] for name in _INTERIOR_ARRAYS))
+        self.estimates = 0
+        """Exact tangent-plane estimates of the object's surface made by the checks so far (a
+        cost diagnostic)."""
+        self._point, self._at = coal.Sphere(0.0), coal.Transform3s()  # a point, and where it is
         self._identity = coal.Transform3s()
-        self._distance_request = coal.DistanceRequest()
+        self._distance_request, self._distance = coal.DistanceRequest(), coal.DistanceResult()
 
     # ------------------------------------------------------------------- check
-    def _link_poses(self, T: np.ndarray, q: np.ndarray) -> np.ndarray:
-        pin.framesForwardKinematics(self.gripper.model, self._data, q)
-        return np.array([T @ self._data.oMf[fid].homogeneous for fid in self._frame_ids])
-
     def _check_inputs(self, T_object_gripper, q) -> tuple[np.ndarray, np.ndarray]:
-        T = np.asarray(T_object_gripper, dtype=float)
+        T = np.array(T_object_gripper, dtype=float, order="C")  # a writeable copy: one compiled type
         if T.shape != (4, 4) or not np.isfinite(T).all():
             raise InvalidInputError(f"T_object_gripper must be a finite 4x4 homogeneous transform, "
                                     f"got shape {T.shape}; pass the fitted palm pose")
-        R = T[:3, :3]
-        if np.abs(R.T @ R - np.eye(3)).max() > 1e-6 or np.abs(T[3] - [0, 0, 0, 1]).max() > 1e-12:
+        if not _rigid(T):
             raise InvalidInputError("T_object_gripper is not a rigid transform (rotation not "
                                     "orthonormal or last row not [0 0 0 1]); re-orthonormalise it")
         q = np.asarray(q, dtype=float).reshape(-1)
@@ -263,7 +300,20 @@ class CollisionChecker:
             InvalidInputError: ``T_object_gripper`` is not a rigid transform or ``q`` has the wrong size.
         """
         T, q = self._check_inputs(T_object_gripper, q)
-        return _Check(self, self._link_poses(T, q)[self._frames]).report()
+        links = self.gripper.frame_kinematics_many(q[None], self._frame_ids)
+        poses, depth, where, clearance, candidates, owner, nearest, estimates = check_elements(
+            T, links.rotations[0], links.positions[0], self.tolerance, *self._kernel_args)
+        self.estimates += estimates
+        if clearance > 0.0 and len(candidates):
+            clearance = min(clearance, self._clearance_of(candidates, owner, nearest, poses))
+        colliding = [self._elements[i].link for i in np.flatnonzero(depth > self.tolerance)]
+        worst = int(np.argmax(depth))
+        free = not colliding
+        return CollisionReport(
+            collision_free=free, penetration=float(depth[worst]), clearance=float(clearance),
+            colliding_links=tuple(dict.fromkeys(colliding)),
+            obstacle=None if free else self._obstacle_names[where[worst]],
+        )
 
     def check_many(self, T_object_gripper: np.ndarray, q: np.ndarray) -> list[CollisionReport]:
         """:meth:`check` of B poses (B, 4, 4) with joints (B, n_joints), in order.
@@ -278,47 +328,28 @@ class CollisionChecker:
                                     f"{T.shape} and {q.shape}; stack one pose and joint vector per grasp")
         return [self.check(t, j) for t, j in zip(T, q)]
 
-    # ---------------------------------------------------- helpers of _Check
-    def _object_inside(self, elements: list[int], poses: np.ndarray) -> dict[int, float]:
-        """Deepest object point inside each of the closed ``elements`` posed at ``poses`` (E, 4, 4)."""
-        out = {}
-        for i in elements:
-            e = self._elements[i]
-            if e.closed:
-                d = e.object_depth(self._points, poses[i], self.tolerance)
-                if d > 0.0:
-                    out[i] = d
-        return out
-
-    def _point_distance(self, point: np.ndarray, geometry, pose: coal.Transform3s) -> float:
-        """Exact distance from a point (3,) to a coal geometry posed at ``pose``, metres."""
-        return coal.distance(self._point, coal.Transform3s(np.eye(3), point), geometry, pose,
-                             self._distance_request, coal.DistanceResult())
-
-    def _clearance_of(self, points: np.ndarray, owner: np.ndarray, poses: np.ndarray) -> float:
+    # ------------------------------------------------------------------- clearance
+    def _clearance_of(self, points: np.ndarray, owner: np.ndarray, nearest: np.ndarray,
+                      poses: np.ndarray) -> float:
         """Smallest distance between the elements and the object, metres, measured from samples
-        ``points`` (M, 3) of elements ``owner`` (M,) that lie nearest the object.
+        ``points`` (M, 3) of elements ``owner`` (M,) that lie nearest the object (``nearest``:
+        their distances to the nearest object point).
 
         Both ways, each an exact point distance: from the few samples nearest the object's samples
         to the object's mesh (coal; to the nearest object sample for a point cloud), and from the
-        object samples nearest the best of those to the triangles of its element and of the
-        runner-up element.
+        object samples nearest the best of those to the triangles of their elements
+        (:func:`isf.collision_kernel.reverse_clearance`).
         """
-        k = min(_REVERSE_PROBES, len(self._surface.points))
-        nearest, idx = self._surface.tree.query_k(points, k)
-        nearest = nearest[:, 0]
         measured = nearest.copy()
         if self._mesh is not None:
-            for j in np.argsort(nearest)[:_CLEARANCE_EXACT]:
-                measured[j] = self._point_distance(points[j], self._mesh, self._identity)
-        order = np.argsort(measured)
-        best = float(measured[order[0]])
-        for j in order[np.unique(owner[order], return_index=True)[1]][:2]:
-            e = int(owner[j])
-            pose = coal.Transform3s(poses[e, :3, :3], poses[e, :3, 3])
-            for probe in self._surface.points[idx[j]]:
-                best = min(best, self._point_distance(probe, self._elements[e].bvh, pose))
-        return max(best, 0.0)
+            for j in np.argsort(nearest, kind="stable")[:_CLEARANCE_EXACT]:
+                self._at.setTranslation(points[j])
+                self._distance.clear()
+                measured[j] = coal.distance(self._point, self._at, self._mesh, self._identity,
+                                            self._distance_request, self._distance)
+        return reverse_clearance(measured, points, owner, poses, self._triangles, self._triangle_start,
+                                 self._surface.points, self._surface.tree.tree,
+                                 min(_REVERSE_PROBES, len(self._surface.points)))
 
 
 # ---------------------------------------------------------------------- set-up
@@ -373,22 +404,87 @@ def _object_surface(obj: ObjectSurface, state: dict) -> TangentPlanes:
     return memo[key]
 
 
+_ELEMENT_ARRAYS = ("_hull", "_hull_start", "_sphere", "_radius", "_contact", "_kind", "_bounds",
+                   "_planes", "_plane_start", "_element_patches", "_last_patch", "_frames")
+_INTERIOR_ARRAYS = ("_hull_planes", "_hull_plane_start", "_field", "_field_start", "_field_shape", "_field_lo",
+                    "_field_h", "_inner_start", "_node_start", "_inner_points", "_inner_normals",
+                    "_tree_points", "_tree_order", "_node_first", "_node_stop", "_node_axis", "_node_split",
+                    "_node_left", "_node_right")
+_PATCH_ARRAYS = ("_samples", "_offsets", "_margin", "_patch_start", "_patch_size", "_patch_radius",
+                 "_patch_margin", "_box_lo", "_box_hi")
+
+
+def _probe_grid(points: np.ndarray, cells: int = 32) -> tuple:
+    """The object points (M, 3) in a grid of cubic cells, about ``cells`` along the box's longest
+    side: ``(points by cell, cell_start, corner, edge, shape)`` as
+    :func:`isf.collision_kernel.check_elements` takes them."""
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    cell = max(float((hi - lo).max()) / cells, 1e-3)
+    shape = np.floor((hi - lo) / cell).astype(np.int64) + 1
+    key = np.minimum(np.floor((points - lo) / cell).astype(np.int64), shape - 1)
+    index = (key[:, 0] * shape[1] + key[:, 1]) * shape[2] + key[:, 2]
+    order = np.argsort(index, kind="stable")
+    start = np.r_[0, np.cumsum(np.bincount(index, minlength=int(np.prod(shape))))]
+    return np.ascontiguousarray(points[order]), start, lo, cell, shape
+
+
+def _stacked(parts: list[np.ndarray], dtype=float) -> tuple[np.ndarray, np.ndarray]:
+    """The arrays ``parts`` stacked along their first axis, and where each starts (len + 1,)."""
+    return (np.ascontiguousarray(np.concatenate(parts), dtype=dtype),
+            np.r_[0, np.cumsum([len(x) for x in parts])])
+
+
+def _interiors(els: list[Element]) -> dict[str, np.ndarray]:
+    """The insides of the closed non-convex elements stacked (empty for the others): hull
+    planes, grids (values raveled, with their shapes, corners and spacings) and surfaces with
+    their trees (:attr:`isf.nearest.NearestPoints.tree`; indices within each element's part)."""
+    parts = [(e.hull_planes if e.hull_planes is not None else np.empty((0, 4)), e.field, e.surface)
+             if e.surface is not None else (np.empty((0, 4)), None, None) for e in els]
+    out = {}
+    out["_hull_planes"], out["_hull_plane_start"] = _stacked([p[0] for p in parts])
+    out["_field"], out["_field_start"] = _stacked(
+        [np.ravel(f.values) if f is not None else np.empty(0) for _, f, _ in parts])
+    out["_field_shape"] = np.array([f.values.shape if f is not None else (0, 0, 0) for _, f, _ in parts])
+    out["_field_lo"] = np.array([f.lo if f is not None else np.zeros(3) for _, f, _ in parts])
+    out["_field_h"] = np.array([f.h if f is not None else 1.0 for _, f, _ in parts])
+    surfaces = [s for _, _, s in parts]
+    out["_inner_points"], out["_inner_start"] = _stacked(
+        [s.points if s is not None else np.empty((0, 3)) for s in surfaces])
+    out["_inner_normals"], _ = _stacked([s.normals if s is not None else np.empty((0, 3)) for s in surfaces])
+    trees = [s.tree.tree if s is not None else None for s in surfaces]
+    out["_tree_points"], _ = _stacked([t[0] if t else np.empty((0, 3)) for t in trees])
+    out["_tree_order"], _ = _stacked([t[1] if t else np.empty(0, np.int64) for t in trees], np.int64)
+    nodes = ("_node_first", "_node_stop", "_node_axis", "_node_split", "_node_left", "_node_right")
+    for k, name in enumerate(nodes, start=2):
+        out[name], out["_node_start"] = _stacked(
+            [t[k] if t else np.empty(0, float if name == "_node_split" else np.int64) for t in trees],
+            float if name == "_node_split" else np.int64)
+    return out
+
+
 def _packed(els: list[Element]) -> dict[str, np.ndarray]:
-    """Per-element arrays stacked for vectorised checks (the checker's attributes of these
-    names), samples grouped by patch.
+    """Per-element arrays stacked for the compiled checks (:func:`isf.collision_kernel.check_elements`
+    describes them), samples grouped by patch; the elements' triangles (link frame) stacked.
 
     Every patch is a contiguous run of rows with its centre first; elements are contiguous
     runs of patches.
     """
+    planes = [e.planes if e.planes is not None else np.empty((0, 4)) for e in els]
     out = {"_frames": np.array([e.frame for e in els]),
-           "_contact": np.array([e.contact for e in els]),
+           "_contact": np.array([e.contact for e in els], dtype=bool),
+           "_kind": np.array([0 if not e.closed else 1 if e.planes is not None else 2 for e in els]),
+           "_bounds": np.array([e.bounds for e in els]),
+           "_planes": np.ascontiguousarray(np.concatenate(planes), dtype=float),
+           "_plane_start": np.r_[0, np.cumsum([len(x) for x in planes])],
            "_hull": np.concatenate([e.hull for e in els]),
-           "_hull_start": np.r_[0, np.cumsum([len(e.hull) for e in els])[:-1]],
-           "_hull_element": np.repeat(np.arange(len(els)), [len(e.hull) for e in els]),
+           "_hull_start": np.r_[0, np.cumsum([len(e.hull) for e in els])],
            "_sphere": np.array([e.centre for e in els]),
-           "_radius": np.array([e.radius for e in els])}
-    samples, offsets, starts, sizes, owner, last, rows = [], [], [], [], [], [], 0
-    for i, e in enumerate(els):
+           "_radius": np.array([e.radius for e in els]),
+           "_triangles": np.ascontiguousarray(np.concatenate([e.mesh.triangles for e in els]), dtype=float),
+           "_triangle_start": np.r_[0, np.cumsum([len(e.mesh.faces) for e in els])]}
+    out.update(_interiors(els))
+    samples, offsets, starts, sizes, last, rows = [], [], [], [], [], 0
+    for e in els:
         is_centre = np.zeros(len(e.samples), dtype=bool)
         is_centre[e.centres] = True
         order = np.lexsort((~is_centre, e.parent))
@@ -398,271 +494,24 @@ def _packed(els: list[Element]) -> dict[str, np.ndarray]:
         offsets.append(e.samples[order] - e.samples[e.centres[parent]])
         starts.append(rows + first)
         sizes.append(np.diff(np.r_[first, len(order)]))
-        owner.append(np.full(len(first), i))
         vertex = np.flatnonzero(order == len(e.samples) - 1)[0]
         last.append(int(np.searchsorted(first, vertex, "right") - 1))
         rows += len(order)
     offsets = np.concatenate(offsets)
     reach = np.linalg.norm(offsets, axis=1)
     patch_start = np.concatenate(starts)
-    margin = _PREDICTION_ERROR + _PREDICTION_SLOPE * reach
+    margin = PREDICTION_ERROR + PREDICTION_SLOPE * reach
     margin[patch_start] = 0.0  # the centres
     patch_radius = np.maximum.reduceat(reach, patch_start)
     element_patches = np.r_[0, np.cumsum([len(x) for x in starts])]
     out.update({
         "_samples": np.concatenate(samples), "_offsets": offsets, "_margin": margin,
         "_patch_start": patch_start, "_patch_size": np.concatenate(sizes),
-        "_patch_element": np.concatenate(owner), "_patch_radius": patch_radius,
-        "_patch_margin": _PREDICTION_ERROR + _PREDICTION_SLOPE * patch_radius,
+        "_patch_radius": patch_radius,
+        "_patch_margin": PREDICTION_ERROR + PREDICTION_SLOPE * patch_radius,
         "_box_lo": np.minimum.reduceat(offsets, patch_start),
         "_box_hi": np.maximum.reduceat(offsets, patch_start),
         "_element_patches": element_patches,
         "_last_patch": element_patches[:-1] + np.array(last),  # patch of the last vertex
     })
     return out
-
-
-def _segment_any(mask: np.ndarray, starts: np.ndarray) -> np.ndarray:
-    """Per segment (runs beginning at ``starts``, none empty): does ``mask`` hold anywhere?"""
-    return np.logical_or.reduceat(mask, starts)
-
-
-class _Check:
-    """One check of the posed elements (see the module docs for what it computes).
-
-    Element by element: planes from the hull; bounding spheres cull elements wholly outside the
-    object; the patch centres of the rest get the exact tangent-plane signed distance, patches
-    that may hold samples inside the object (or nearest to it) are opened, their samples get a
-    first-order prediction with an error bound, and the samples that can change a verdict, the
-    deepest value or the clearance are evaluated exactly.
-    """
-
-    def __init__(self, checker: CollisionChecker, poses: np.ndarray):
-        self.c, self.poses = checker, poses
-        c = checker
-        n = len(c._elements)
-        R, t = poses[:, :3, :3], poses[:, :3, 3]
-        eh = c._hull_element
-        hull = np.einsum("hij,hj->hi", R[eh], c._hull) + t[eh]
-        lo, hi = np.minimum.reduceat(hull, c._hull_start), np.maximum.reduceat(hull, c._hull_start)
-        self.depth = np.zeros(n)
-        self.where: list[str | None] = [None] * n
-        self.clearance = np.inf
-        for plane in c.obstacles:
-            h = np.minimum.reduceat(plane.height(hull), c._hull_start)
-            self.clearance = min(self.clearance, max(float(h.min()), 0.0))
-            for i in np.flatnonzero(-h > self.depth):
-                self.depth[i], self.where[i] = -h[i], plane.name
-        near = np.all(hi >= c._lo, axis=1) & np.all(lo <= c._hi, axis=1)
-        if c._voxels is not None and near.any():
-            near[near] = ~c._voxels.clear(lo[near] - _VOXEL_MARGIN, hi[near] + _VOXEL_MARGIN)
-        # Bounding spheres: the signed distance of the centre less the radius bounds the element's
-        # (an element wholly outside by a margin neither penetrates nor needs its samples tested);
-        # the distance to the nearest object point plus the radius bounds its clearance.
-        candidates = np.flatnonzero(near | ~c._contact)
-        centres = np.einsum("eij,ej->ei", R[candidates], c._sphere[candidates]) + t[candidates]
-        sd, _, nearest, _ = c._surface.evaluate(centres)
-        lower = np.minimum(sd, nearest - c._cover) - c._radius[candidates]
-        free = ~c._contact[candidates]
-        self.clearance_bound = self.clearance
-        if free.any():
-            self.clearance_bound = min(self.clearance, float((nearest + c._radius[candidates])[free].min()))
-        self.deep = np.zeros(n, dtype=bool)
-        self.deep[candidates[near[candidates] & (lower < _CULL_MARGIN)]] = True
-        self.apart = np.zeros(n, dtype=bool)
-        self.apart[candidates[free & (lower < self.clearance_bound)]] = True
-
-    def report(self) -> CollisionReport:
-        c = self.c
-        if (self.deep | self.apart).any():
-            self._sample_tests()
-        colliding = [c._elements[i].link for i in np.flatnonzero(self.depth > c.tolerance)]
-        worst = int(np.argmax(self.depth))
-        penetration = float(self.depth[worst])
-        free = not colliding
-        return CollisionReport(
-            collision_free=free, penetration=penetration, clearance=float(self.clearance),
-            colliding_links=tuple(dict.fromkeys(colliding)),
-            obstacle=None if free else self.where[worst],
-        )
-
-    # ------------------------------------------------------------------ samples
-    def _sample_tests(self) -> None:
-        c = self.c
-        act = np.flatnonzero(self.deep | self.apart)
-        first = c._element_patches[act]
-        counts = c._element_patches[act + 1] - first
-        patch = np.repeat(first - np.r_[0, np.cumsum(counts)[:-1]], counts) + np.arange(counts.sum())
-        pe = c._patch_element[patch]
-        R, t = self.poses[:, :3, :3], self.poses[:, :3, 3]
-        centre = np.einsum("pij,pj->pi", R[pe], c._samples[c._patch_start[patch]]) + t[pe]
-        # A patch farther from the object's box than its radius (or whose ball lies in voxels
-        # outside a mesh object) holds no sample inside the object; one farther than its radius
-        # plus the clearance bound none nearer to it.
-        gap = np.linalg.norm(np.maximum(np.maximum(c._lo - centre, centre - c._hi), 0.0), axis=1)
-        rho = c._patch_radius[patch]
-        outside = gap > rho
-        if c._voxels is not None:
-            test = np.flatnonzero(self.deep[pe] & ~outside)
-            reach = (rho[test] + _VOXEL_MARGIN)[:, None]
-            outside[test] = c._voxels.clear(centre[test] - reach, centre[test] + reach)
-            gap = np.maximum(gap, c._voxels.distance_below(centre))
-        need = self.deep[pe] & ~outside
-        need[np.searchsorted(patch, c._last_patch[act])] = True
-        taken = np.flatnonzero(need)
-        sd, normal, nearest, foot = c._surface.evaluate(centre[taken])
-        # patches for the clearance: those that may hold samples nearer than an evaluated centre
-        bound = self.clearance_bound
-        seen = self.apart[pe[taken]]
-        if seen.any():
-            bound = min(bound, float(nearest[seen].min()))
-        more = np.flatnonzero(self.apart[pe] & ~need & (gap - rho < bound))
-        if len(more):
-            need[more] = True
-            extra = c._surface.evaluate(centre[more])
-            order = np.argsort(np.r_[taken, more])
-            sd, normal, nearest, foot = (np.concatenate([a, b])[order]
-                                         for a, b in zip((sd, normal, nearest, foot), extra))
-        self.outside_patch = np.zeros(len(self.depth), dtype=bool)  # elements with such a patch
-        self.outside_patch[pe[~need & outside]] = True
-        patch, pe, centre = patch[need], pe[need], centre[need]
-        counts = np.bincount(np.searchsorted(act, pe), minlength=len(act))
-        element_start = np.r_[0, np.cumsum(counts)[:-1]]  # first patch of each active element
-        Rp = R[pe]
-        m = np.einsum("pij,pi->pj", Rp, normal)  # the gradient in the link frame: R^T n
-        # lowest first-order prediction over each patch (its offsets' bounding box) and less the
-        # prediction error bound
-        low = sd + np.minimum(c._box_lo[patch] * m, c._box_hi[patch] * m).sum(axis=1)
-        low_bound = low - c._patch_margin[patch]
-        deep, contact = self.deep[pe], c._contact[pe]
-        centre_depth = np.maximum.reduceat(-sd, element_start)[np.repeat(np.arange(len(act)), counts)]
-        opened = deep & (low_bound < -c.tolerance)  # the verdict
-        opened |= deep & (low < -(np.maximum(centre_depth, 0.0) + _DEPTH_RESOLUTION))  # the value
-        touching = centre_depth > 0.0
-        opened |= deep & ~contact & ~touching & (low_bound < 0.0)  # does a non-contact element touch?
-        wholly_inside = ~(np.logical_or.reduceat(sd >= 0.0, element_start)
-                          | self.outside_patch[act])[np.repeat(np.arange(len(act)), counts)]
-        opened |= deep & wholly_inside
-        clear = np.flatnonzero(self.apart[pe])
-        if len(clear):  # the patches nearest the object of elements that need their clearance
-            opened[clear[np.argsort(nearest[clear])[:_CLEARANCE_PATCHES]]] = True
-        sizes = np.where(opened, c._patch_size[patch], 1)
-        row_start = np.r_[0, np.cumsum(sizes)[:-1]]
-        rp = np.repeat(np.arange(len(patch)), sizes)  # row -> position in `patch`
-        rows = np.repeat(c._patch_start[patch] - row_start, sizes) + np.arange(sizes.sum())
-        self.pred = sd[rp] + np.einsum("ni,ni->n", c._offsets[rows], m[rp])
-        self.margin = np.where(opened[rp], c._margin[rows], 0.0)
-        self.rows, self.rp, self.Rp, self.tp = rows, rp, Rp, t[pe]
-        self.foot = foot
-        self.owner = pe[rp]
-        counts_rows = np.add.reduceat(sizes, element_start)
-        self.seg = np.r_[0, np.cumsum(counts_rows)[:-1]]  # first row of each active element
-        self.act = act
-        last_rows = row_start[np.searchsorted(patch, c._last_patch[act])]
-        self._refine()
-        self._depths(last_rows)
-        self._clearance()
-
-    def _world(self, rows: np.ndarray) -> np.ndarray:
-        """Object-frame positions of the given rows, (M, 3)."""
-        p = self.rp[rows]
-        return np.einsum("nij,nj->ni", self.Rp[p], self.c._samples[self.rows[rows]]) + self.tp[p]
-
-    def _evaluate(self, rows: np.ndarray) -> None:
-        self.pred[rows] = self.c._surface.evaluate(self._world(rows))[0]
-        self.margin[rows] = 0.0
-
-    def _deepest_known(self) -> np.ndarray:
-        known = self.margin == 0.0
-        return np.maximum(np.maximum.reduceat(np.where(known, -self.pred, -np.inf), self.seg), 0.0)
-
-    def _refine(self) -> None:
-        """Evaluate exactly the samples that can change a verdict, the deepest value, whether a
-        non-contact element touches, or whether an element lies wholly inside.
-
-        The first round takes each element's deepest-looking candidates for the verdict, the value
-        and touching; later rounds all remaining verdict candidates of unsettled elements and the
-        value's candidates while the deepest value grows.
-        """
-        c, seg, owner = self.c, self.seg, self.owner
-        deep = self.deep[owner]
-        free = deep & ~c._contact[owner]
-        position = self._position(owner)
-        deepest = self._deepest_known()
-        improving = np.ones(len(self.act), dtype=bool)
-        for round_ in range(3):
-            known = self.margin == 0.0
-            unknown = deep & ~known
-            if not unknown.any():
-                break
-            lo, hi = self.pred - self.margin, self.pred + self.margin
-            verdict = unknown & (deepest[position] <= c.tolerance) & (-lo > c.tolerance)
-            overall = max(float(deepest.max()), float(self.depth.max()))  # the report's is the deepest
-            value = unknown & (-self.pred > overall + _DEPTH_RESOLUTION) & improving[position]
-            want = self._deepest_looking(value)
-            if round_ == 0:
-                want |= self._deepest_looking(verdict)
-                if self.clearance > 0.0:  # does a non-contact element touch?
-                    touching = _segment_any(known & (self.pred < 0.0), seg)[position]
-                    want |= self._deepest_looking(unknown & free & ~touching & (lo < 0.0))
-            else:
-                want |= verdict
-            outside = (_segment_any(lo >= 0.0, seg) | self.outside_patch[self.act])[position]
-            want |= unknown & ~outside & (hi >= 0.0)  # wholly inside?
-            rows = np.flatnonzero(want)
-            if not len(rows):
-                break
-            self._evaluate(rows)
-            now = self._deepest_known()
-            improving, deepest = now > deepest, now
-
-    def _deepest_looking(self, mask: np.ndarray) -> np.ndarray:
-        """The ``_DEEPEST_CANDIDATES`` rows of ``mask`` with the lowest prediction, per element."""
-        out = np.zeros(len(mask), dtype=bool)
-        rows = np.flatnonzero(mask)
-        if len(rows):
-            rows = rows[np.lexsort((self.pred[rows], self.owner[rows]))]
-            group = self.owner[rows]
-            begin = np.flatnonzero(np.r_[True, group[1:] != group[:-1]])
-            rank = np.arange(len(rows)) - np.repeat(begin, np.diff(np.r_[begin, len(rows)]))
-            out[rows[rank < _DEEPEST_CANDIDATES]] = True
-        return out
-
-    def _position(self, owner: np.ndarray) -> np.ndarray:
-        """Position in ``self.act`` of elements ``owner``."""
-        return np.searchsorted(self.act, owner)
-
-    def _depths(self, last_rows: np.ndarray) -> None:
-        c, seg = self.c, self.seg
-        deep = self.deep[self.act]
-        if not deep.any():
-            return
-        known = self.margin == 0.0
-        inside_any = _segment_any((known & (self.pred < 0.0)) | (self.pred + self.margin < 0.0), seg)
-        outside_any = _segment_any(self.pred - self.margin >= 0.0, seg) | self.outside_patch[self.act]
-        deepest = self._deepest_known()
-        inner = c._object_inside(self.act[deep], self.poses)
-        for k in np.flatnonzero(deep):
-            i = self.act[k]
-            d_out = inner.get(i, 0.0)
-            if inside_any[k] and not outside_any[k] and d_out == 0.0:  # wholly inside: a vertex tells
-                d = max(0.0, -float(self.pred[last_rows[k]]))
-            else:
-                d = max(float(deepest[k]), d_out)
-            if d > self.depth[i]:
-                self.depth[i], self.where[i] = d, "object"
-            if d > 0.0 and not c._contact[i]:
-                self.clearance = 0.0
-
-    def _clearance(self) -> None:
-        if self.clearance == 0.0:
-            return
-        rows = np.flatnonzero(self.apart[self.owner])
-        if not len(rows):
-            return
-        # the samples nearest the nearest samples of the object seen from the centres
-        world = self._world(rows)
-        far = np.linalg.norm(world - self.foot[self.rp[rows]], axis=1)
-        take = np.argsort(far)[:_CLEARANCE_CANDIDATES]
-        self.clearance = min(self.clearance, self.c._clearance_of(world[take], self.owner[rows[take]],
-                                                                  self.poses))

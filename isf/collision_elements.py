@@ -8,20 +8,22 @@ An element (one :class:`~isf.gripper.LinkGeometry`) carries, in its link frame:
   centre and stores its offset from it. A check evaluates the object's signed distance exactly
   at the centres only and predicts it at the other samples to first order (see
   :mod:`isf.collision`);
-* its convex hull (vertices and face planes), bounding sphere and coal BVH; for a closed element
-  the description of its inside (face planes when convex, else a tangent-plane surface).
+* its convex hull (vertices and face planes), bounding sphere and mesh; for a closed element
+  the description of its inside (face planes when convex, else a tangent-plane surface and a
+  grid of its estimate), with compiled tests of object points inside it
+  (:func:`convex_depth`, :func:`non_convex_depth`) and exact point-triangle distances.
 """
 
 from __future__ import annotations
 
-import coal
 import numpy as np
 import trimesh
 from numba import njit
 from scipy.spatial import cKDTree
 
-from .collision_surface import TangentPlanes
+from .collision_surface import NEIGHBOURS, TangentPlanes, estimate
 from .gripper import LinkGeometry
+from .nearest import search_scratch
 
 SAMPLE_SPACING = 0.001  # gripper surface samples, m
 MAX_SAMPLES = 800  # per element (spacing grows on large elements)
@@ -44,32 +46,55 @@ def even_samples(mesh: trimesh.Trimesh, spacing: float, max_points: int,
     return points, mesh.face_normals[face]
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _segment_distance2(px, py, pz, ax, ay, az, bx, by, bz):
+    """Squared distance from ``p`` to the segment ``ab``."""
+    dx, dy, dz = bx - ax, by - ay, bz - az
+    length2 = dx * dx + dy * dy + dz * dz
+    s = 0.0 if length2 <= 0.0 else min(max(((px - ax) * dx + (py - ay) * dy + (pz - az) * dz) / length2, 0.0), 1.0)
+    return (px - ax - s * dx) ** 2 + (py - ay - s * dy) ** 2 + (pz - az - s * dz) ** 2
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def triangle_distance2(px, py, pz, tri, f):
+    """Squared distance from ``p`` to triangle ``tri[f]`` ((F, 3, 3) corners): the nearest point
+    by the triangle's Voronoi regions (Ericson, Real-Time Collision Detection, 5.1.5); a
+    degenerate triangle's by its edges."""
+    ax, ay, az = tri[f, 0, 0], tri[f, 0, 1], tri[f, 0, 2]
+    bx, by, bz = tri[f, 1, 0], tri[f, 1, 1], tri[f, 1, 2]
+    cx, cy, cz = tri[f, 2, 0], tri[f, 2, 1], tri[f, 2, 2]
+    abx, aby, abz, acx, acy, acz = bx - ax, by - ay, bz - az, cx - ax, cy - ay, cz - az
+    d1 = abx * (px - ax) + aby * (py - ay) + abz * (pz - az)
+    d2 = acx * (px - ax) + acy * (py - ay) + acz * (pz - az)
+    d3 = abx * (px - bx) + aby * (py - by) + abz * (pz - bz)
+    d4 = acx * (px - bx) + acy * (py - by) + acz * (pz - bz)
+    d5 = abx * (px - cx) + aby * (py - cy) + abz * (pz - cz)
+    d6 = acx * (px - cx) + acy * (py - cy) + acz * (pz - cz)
+    va, vb, vc = d3 * d6 - d5 * d4, d5 * d2 - d1 * d6, d1 * d4 - d3 * d2
+    if va > 0.0 and vb > 0.0 and vc > 0.0:  # the foot lies inside: the distance to the plane
+        v, w = vb / (va + vb + vc), vc / (va + vb + vc)
+        return ((px - ax - v * abx - w * acx) ** 2 + (py - ay - v * aby - w * acy) ** 2
+                + (pz - az - v * abz - w * acz) ** 2)
+    return min(_segment_distance2(px, py, pz, ax, ay, az, bx, by, bz),
+               _segment_distance2(px, py, pz, bx, by, bz, cx, cy, cz),
+               _segment_distance2(px, py, pz, cx, cy, cz, ax, ay, az))
+
+
+@njit(cache=True, error_model="numpy")
+def _nearest_triangle_distances(points, triangles):
+    out = np.empty(len(points))
+    for i in range(len(points)):
+        best = np.inf
+        for f in range(len(triangles)):
+            best = min(best, triangle_distance2(points[i, 0], points[i, 1], points[i, 2], triangles, f))
+        out[i] = np.sqrt(best)
+    return out
+
+
 def point_triangle_distance(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     """Exact distance of each point (M, 3) to the nearest of the triangles (F, 3, 3), metres (M,)."""
-    a, b, c = triangles[:, 0], triangles[:, 1], triangles[:, 2]
-    p = points[:, None, :]
-    n = np.cross(b - a, c - a)
-    n2 = np.maximum(np.einsum("fi,fi->f", n, n), 1e-300)
-    foot = p - (np.einsum("mfi,fi->mf", p - a, n) / n2)[..., None] * n
-    inside = np.ones(foot.shape[:2], dtype=bool)
-    for x, y in ((a, b), (b, c), (c, a)):  # the foot lies inside when every edge sees it on n's side
-        inside &= np.einsum("mfi,fi->mf", np.cross(y - x, foot - x), n) >= 0
-    best = np.where(inside, np.linalg.norm(p - foot, axis=2), np.inf)
-    for x, y in ((a, b), (b, c), (c, a)):  # else the nearest point lies on an edge
-        d = y - x
-        s = np.clip(np.einsum("mfi,fi->mf", p - x, d) / np.maximum(np.einsum("fi,fi->f", d, d), 1e-300), 0, 1)
-        best = np.minimum(best, np.linalg.norm(p - (x + s[..., None] * d), axis=2))
-    return best.min(axis=1)
-
-
-def bvh(vertices: np.ndarray, faces: np.ndarray) -> coal.BVHModelOBBRSS:
-    """A coal BVH of a triangle mesh."""
-    model = coal.BVHModelOBBRSS()
-    model.beginModel(len(faces), len(vertices))
-    model.addVertices(np.ascontiguousarray(vertices, dtype=np.float64))
-    model.addTriangles(np.ascontiguousarray(faces, dtype=np.int64))
-    model.endModel()
-    return model
+    return _nearest_triangle_distances(np.ascontiguousarray(points, dtype=np.float64),
+                                       np.ascontiguousarray(triangles, dtype=np.float64))
 
 
 def patches(samples: np.ndarray, area: float, count: int) -> tuple[np.ndarray, np.ndarray]:
@@ -94,47 +119,102 @@ def patches(samples: np.ndarray, area: float, count: int) -> tuple[np.ndarray, n
     return centres, nearest
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _above(x, y, z, planes):
+    """Largest signed distance of ``(x, y, z)`` to the planes ``[n, n . x]`` (F, 4); -inf for none."""
+    sd = -np.inf
+    for f in range(len(planes)):
+        sd = max(sd, x * planes[f, 0] + y * planes[f, 1] + z * planes[f, 2] - planes[f, 3])
+    return sd
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _node_value(values, lo, h, x, y, z):
+    """``values`` (grid with corner ``lo``, spacing ``h``) at the node nearest ``(x, y, z)``; inf
+    off the grid."""
+    a = np.rint((x - lo[0]) / h)
+    b = np.rint((y - lo[1]) / h)
+    c = np.rint((z - lo[2]) / h)
+    if 0 <= a < values.shape[0] and 0 <= b < values.shape[1] and 0 <= c < values.shape[2]:
+        return values[int(a), int(b), int(c)]
+    return np.inf
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _in_box(points, i, pose, bounds):
+    """Point ``i`` of ``points`` (M, 3) in the frame ``pose`` (4, 4) places, and whether it lies
+    in the box ``bounds`` (2, 3) there."""
+    x, y, z = points[i, 0] - pose[0, 3], points[i, 1] - pose[1, 3], points[i, 2] - pose[2, 3]
+    a = x * pose[0, 0] + y * pose[1, 0] + z * pose[2, 0]
+    b = x * pose[0, 1] + y * pose[1, 1] + z * pose[2, 1]
+    c = x * pose[0, 2] + y * pose[1, 2] + z * pose[2, 2]
+    inside = (bounds[0, 0] <= a <= bounds[1, 0] and bounds[0, 1] <= b <= bounds[1, 1]
+              and bounds[0, 2] <= c <= bounds[1, 2])
+    return a, b, c, inside
+
+
 @njit(cache=True, error_model="numpy")
-def _in_box(points, R, t, lo, hi):
-    """The points (M, 3) that ``(p - t) @ R`` maps into the box [lo, hi], so mapped (K, 3)."""
-    out = np.empty((len(points), 3))
-    k = 0
+def convex_depth(points, pose, bounds, planes):
+    """Deepest of the object points (M, 3), object frame, inside a convex element posed at
+    ``pose`` (4, 4) with link-frame box ``bounds`` (2, 3) and face planes ``planes`` (F, 4) as
+    ``[n, n . x]`` rows, metres (0 if none): exact."""
+    low = np.inf
     for i in range(len(points)):
-        x, y, z = points[i, 0] - t[0], points[i, 1] - t[1], points[i, 2] - t[2]
-        inside = True
-        for d in range(3):
-            out[k, d] = x * R[0, d] + y * R[1, d] + z * R[2, d]
-            inside = inside and lo[d] <= out[k, d] <= hi[d]
-        k += inside
-    return out[:k]
+        a, b, c, inside = _in_box(points, i, pose, bounds)
+        if inside:
+            low = min(low, _above(a, b, c, planes))
+    return max(0.0, -low)
 
 
 @njit(cache=True, error_model="numpy")
-def _above_planes(local, planes):
-    """Largest signed distance of each point (M, 3) to the planes ``[n, n . x]`` (F, 4), (M,)."""
-    out = np.empty(len(local))
-    for i in range(len(local)):
-        sd = -np.inf
-        for f in range(len(planes)):
-            sd = max(sd, local[i, 0] * planes[f, 0] + local[i, 1] * planes[f, 1]
-                     + local[i, 2] * planes[f, 2] - planes[f, 3])
-        out[i] = sd
-    return out
+def non_convex_depth(points, pose, bounds, tolerance, hull_planes, field, field_lo, field_h,
+                     surface_points, surface_normals, tree, neighbours):
+    """Deepest of the object points (M, 3), object frame, inside a closed non-convex element
+    posed at ``pose`` (4, 4), metres (0 if none).
 
-
-@njit(cache=True, error_model="numpy")
-def _at_nearest_node(values, lo, h, points):
-    """``values`` (grid with corner ``lo``, spacing ``h``) at each point's (M, 3) nearest node,
-    (M,); inf off the grid."""
-    out = np.empty(len(points))
+    Points outside its link-frame box ``bounds`` (2, 3) or its convex hull (face planes
+    ``hull_planes`` (G, 4); none when G = 0) are outside; the rest get the tangent-plane estimate
+    of its surface (``surface_points``, ``surface_normals`` (N, 3), their ``tree``
+    (:attr:`isf.nearest.NearestPoints.tree`), ``neighbours``): all of them when few, else those
+    its grid (``field`` values at nodes ``field_lo + field_h * index``, see
+    :class:`SignedDistanceGrid`) finds deepest (the ``_FIELD_DEEPEST`` deepest-looking, ties to
+    the earlier point) or possibly deeper than ``tolerance``.
+    """
+    local = np.empty((len(points), 3))
+    n = 0
     for i in range(len(points)):
-        out[i] = np.inf
-        a = np.rint((points[i, 0] - lo[0]) / h)
-        b = np.rint((points[i, 1] - lo[1]) / h)
-        c = np.rint((points[i, 2] - lo[2]) / h)
-        if 0 <= a < values.shape[0] and 0 <= b < values.shape[1] and 0 <= c < values.shape[2]:
-            out[i] = values[int(a), int(b), int(c)]
-    return out
+        a, b, c, inside = _in_box(points, i, pose, bounds)
+        if inside and (not len(hull_planes) or _above(a, b, c, hull_planes) < 0):
+            local[n, 0], local[n, 1], local[n, 2] = a, b, c
+            n += 1
+    keep = np.ones(n, np.bool_)
+    if n > _FIELD_FROM:  # screen: the deepest-looking points and any that may be too deep
+        value = np.empty(n)
+        top = np.empty(_FIELD_DEEPEST, np.int64)
+        found = 0
+        for i in range(n):
+            value[i] = _node_value(field, field_lo, field_h, local[i, 0], local[i, 1], local[i, 2])
+            keep[i] = value[i] < field_h - tolerance
+            if not value[i] < field_h or (found == _FIELD_DEEPEST and value[i] >= value[top[found - 1]]):
+                continue
+            j = min(found, _FIELD_DEEPEST - 1)
+            while j > 0 and value[top[j - 1]] > value[i]:
+                top[j] = top[j - 1]
+                j -= 1
+            top[j] = i
+            found = min(found + 1, _FIELD_DEEPEST)
+        for j in range(found):
+            keep[top[j]] = True
+    stack_node, stack_bound, stack_offset = search_scratch()
+    best_d2, best = np.empty(neighbours), np.empty(neighbours, np.int64)
+    depth = 0.0
+    for i in range(n):
+        if keep[i]:
+            sd = estimate(local[i, 0], local[i, 1], local[i, 2], best_d2, best, surface_points,
+                          surface_normals, tree[0], tree[1], tree[2], tree[3], tree[4], tree[5], tree[6],
+                          tree[7], stack_node, stack_bound, stack_offset)[0]
+            depth = max(depth, -sd)
+    return depth
 
 
 class Element:
@@ -152,7 +232,8 @@ class Element:
         closed: a closed, consistently wound mesh (it has an inside).
         bounds: its bounding box, (2, 3) as [lower, upper] corners.
         planes: outward face planes (F, 4) of a closed convex element, else None.
-        surface: tangent planes of a closed non-convex element's surface, else None.
+        surface: tangent planes of a closed non-convex element's surface, else None; ``field``:
+            their :class:`SignedDistanceGrid` over its bounds, else None.
         contact: some contact-surface point of its link lies on it (set by the checker).
     """
 
@@ -188,42 +269,23 @@ class Element:
                 self.planes = np.c_[n, np.einsum("ij,ij->i", n, mesh.triangles[:, 0])]
             else:
                 self.surface = TangentPlanes(samples, normals * sign, np.sqrt(mesh.area / len(samples)))
-        self.bvh = bvh(mesh.vertices, mesh.faces)
         self.contact = False
-        self._field: SignedDistanceGrid | None = None  # built on first need
+        self.field = None if self.surface is None else SignedDistanceGrid(self.surface, self.bounds)
 
-    def object_depth(self, points: np.ndarray, T_object_element: np.ndarray,
-                     tolerance: float) -> float:
-        """Deepest of the object points (M, 3), object frame, inside this closed element posed at
-        ``T_object_element`` (4, 4), metres (0 if none): :meth:`depth_of` of those in its box."""
+    def object_depth(self, points: np.ndarray, T_object_element: np.ndarray, tolerance: float) -> float:
+        """Deepest of the object points (M, 3), object frame, inside this element posed at
+        ``T_object_element`` (4, 4), metres (0 if none or not closed): :func:`convex_depth` or
+        :func:`non_convex_depth`."""
         if not self.closed:
             return 0.0
-        R, t = T_object_element[:3, :3], T_object_element[:3, 3]
-        local = _in_box(points, R, t, self.bounds[0], self.bounds[1])
-        return self.depth_of(local, tolerance)
-
-    def depth_of(self, local: np.ndarray, tolerance: float) -> float:
-        """Deepest of the points (M, 3), link frame, inside this closed element, metres (0 if none).
-
-        Exact by the face planes when the element is convex; else points outside its convex
-        hull are outside, and the rest get the tangent-plane estimate of its surface: all of them
-        when few, else those a grid of that estimate finds deepest (the ``_FIELD_DEEPEST``
-        deepest-looking) or possibly deeper than ``tolerance``.
-        """
-        if not self.closed or len(local) == 0:
-            return 0.0
+        points = np.ascontiguousarray(points, dtype=np.float64)
+        pose = np.ascontiguousarray(T_object_element, dtype=np.float64)
         if self.planes is not None:
-            return float(max(0.0, -_above_planes(local, self.planes).min()))
-        if self.hull_planes is not None:
-            local = local[_above_planes(local, self.hull_planes) < 0]
-        if len(local) > _FIELD_FROM:  # screen: the deepest-looking points and any that may be too deep
-            if self._field is None:
-                self._field = SignedDistanceGrid(self.surface, self.bounds)
-            value = self._field.interpolate(local)
-            maybe = np.flatnonzero(value < self._field.h)
-            top = maybe[np.argsort(value[maybe])[:_FIELD_DEEPEST]]
-            local = local[np.union1d(top, maybe[value[maybe] < self._field.h - tolerance])]
-        return self.surface.depth(local)
+            return convex_depth(points, pose, self.bounds, self.planes)
+        hull = self.hull_planes if self.hull_planes is not None else np.empty((0, 4))
+        s, f = self.surface, self.field
+        return non_convex_depth(points, pose, self.bounds, tolerance, hull, f.values, f.lo, f.h, s.points,
+                                s.normals, s.tree.tree, min(NEIGHBOURS, len(s.points)))
 
 
 class SignedDistanceGrid:
@@ -242,9 +304,3 @@ class SignedDistanceGrid:
         axes = [self.lo[k] + h * np.arange(self.shape[k]) for k in range(3)]
         grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
         self.values = surface.signed_distance(grid).reshape(self.shape)
-
-    def interpolate(self, points: np.ndarray) -> np.ndarray:
-        """Signed distance of points (M, 3) at their nearest grid node, metres (M,); inf outside
-        the grid. Off by at most ``h`` (half a cell diagonal, for a 1-Lipschitz distance)."""
-        points = np.ascontiguousarray(points, dtype=np.float64)
-        return _at_nearest_node(self.values, self.lo, self.h, points)

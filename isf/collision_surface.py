@@ -13,27 +13,44 @@ import numpy as np
 import trimesh
 from numba import njit
 
-from .nearest import NearestPoints
+from . import kdtree
+from .nearest import NearestPoints, search_scratch
 
 NEIGHBOURS = 6  # tangent planes of the nearest surface points a point must lie below to be inside
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def estimate(x, y, z, best_d2, best, points, normals, tree_points, order, start, stop, axis, split, left,
+             right, stack_node, stack_bound, stack_offset):
+    """The signed distance estimate at ``(x, y, z)``: ``(height, plane, distance, nearest)``: the
+    largest height ``(p - o_k) . n_k`` over the ``len(best)`` nearest ``points`` (the first of equal
+    ones), the index of the point whose plane sets it, the distance to the nearest point and its
+    index. ``best_d2``, ``best``: scratch of the neighbour count; the tree arrays and the search
+    scratch as for :func:`isf.kdtree.k_nearest`."""
+    kdtree.k_nearest(x, y, z, best_d2, best, tree_points, order, start, stop, axis, split, left, right,
+                     stack_node, stack_bound, stack_offset)
+    height, plane = -np.inf, best[0]
+    for j in range(len(best)):
+        o = best[j]
+        h = ((x - points[o, 0]) * normals[o, 0] + (y - points[o, 1]) * normals[o, 1]
+             + (z - points[o, 2]) * normals[o, 2])
+        if h > height:
+            height, plane = h, o
+    return height, plane, np.sqrt(best_d2[0]), best[0]
+
+
 @njit(cache=True, error_model="numpy")
-def _highest_planes(query, points, normals, idx):
-    """Per query point (M, 3): the largest height ``(p - o_k) . n_k`` over its neighbours
-    ``idx`` (M, K) (the first of equal ones), (M,), and the index of that neighbour, (M,)."""
-    m, k = idx.shape
-    height, best = np.empty(m), np.empty(m, np.int64)
+def _evaluate(query, points, normals, tree, k):
+    """:func:`estimate` with ``k`` neighbours of each query point (M, 3): four (M,) arrays."""
+    m = len(query)
+    height, plane, distance, nearest = np.empty(m), np.empty(m, np.int64), np.empty(m), np.empty(m, np.int64)
+    stack_node, stack_bound, stack_offset = search_scratch()
+    best_d2, best = np.empty(k), np.empty(k, np.int64)
     for q in range(m):
-        height[q], best[q] = -np.inf, idx[q, 0]
-        for j in range(k):
-            o = idx[q, j]
-            h = ((query[q, 0] - points[o, 0]) * normals[o, 0]
-                 + (query[q, 1] - points[o, 1]) * normals[o, 1]
-                 + (query[q, 2] - points[o, 2]) * normals[o, 2])
-            if h > height[q]:
-                height[q], best[q] = h, o
-    return height, best
+        height[q], plane[q], distance[q], nearest[q] = estimate(
+            query[q, 0], query[q, 1], query[q, 2], best_d2, best, points, normals, tree[0], tree[1], tree[2],
+            tree[3], tree[4], tree[5], tree[6], tree[7], stack_node, stack_bound, stack_offset)
+    return height, plane, distance, nearest
 
 
 class TangentPlanes:
@@ -55,9 +72,8 @@ class TangentPlanes:
             return np.empty(0), np.empty((0, 3)), np.empty(0), np.empty((0, 3))
         k = min(NEIGHBOURS, len(self.points))
         query = np.ascontiguousarray(query, dtype=np.float64)
-        dist, idx = self.tree.query_k(query, k)
-        height, best = _highest_planes(query, self.points, self.normals, idx)
-        return height, self.normals[best], dist[:, 0], self.points[idx[:, 0]]
+        height, plane, distance, nearest = _evaluate(query, self.points, self.normals, self.tree.tree, k)
+        return height, self.normals[plane], distance, self.points[nearest]
 
     def signed_distance(self, query: np.ndarray) -> np.ndarray:
         """Estimated signed distance of points (M, 3), metres (M,), negative inside."""

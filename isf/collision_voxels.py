@@ -114,44 +114,60 @@ def _steps(blocked):
     return steps
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _cell(p, lo, size, n):
+    """The voxel (of ``n``) nearest coordinate ``p`` and the squared distance to the grid's span."""
+    g = min(max(p, lo), lo + n * size)
+    return min(max(int(np.floor((g - lo) / size)), 0), n - 1), (p - g) ** 2
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def distance_below(steps, lo, size, x, y, z):
+    """A lower bound of the distance of point ``(x, y, z)`` to the blocked voxels (Chebyshev
+    ``steps``, grid corner ``lo``, voxel edge ``size``), metres."""
+    a, da = _cell(x, lo[0], size, steps.shape[0])
+    b, db = _cell(y, lo[1], size, steps.shape[1])
+    c, dc = _cell(z, lo[2], size, steps.shape[2])
+    inner = max(steps[a, b, c] - 1, 0) * size
+    return np.sqrt(da + db + dc + inner * inner)
+
+
 @njit(cache=True, error_model="numpy")
 def _distance_below(steps, lo, size, points):
-    """Lower bounds of the distance of points (M, 3) to the blocked voxels, metres (M,)."""
+    """:func:`distance_below` of points (M, 3), metres (M,)."""
     out = np.empty(len(points))
-    cell = np.empty(3, np.int64)
     for q in range(len(points)):
-        beyond = 0.0  # squared distance to the grid
-        for d in range(3):
-            x = min(max(points[q, d], lo[d]), lo[d] + steps.shape[d] * size)
-            beyond += (points[q, d] - x) ** 2
-            cell[d] = min(max(int(np.floor((x - lo[d]) / size)), 0), steps.shape[d] - 1)
-        inner = max(steps[cell[0], cell[1], cell[2]] - 1, 0) * size
-        out[q] = np.sqrt(beyond + inner * inner)
+        out[q] = distance_below(steps, lo, size, points[q, 0], points[q, 1], points[q, 2])
     return out
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _span(a, b, lo, size, n):
+    """The voxels ``[first, last)`` (of ``n``) that the interval ``[a, b]`` overlaps."""
+    return max(int(np.floor((a - lo) / size)), 0), min(int(np.floor((b - lo) / size)), n - 1) + 1
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def box_clear(table, lo, size, lo_x, lo_y, lo_z, hi_x, hi_y, hi_z):
+    """Does the box ``[lo_*, hi_*]`` overlap no voxel counted in the summed-volume ``table``
+    (grid corner ``lo``, voxel edge ``size``)?"""
+    a0, a1 = _span(lo_x, hi_x, lo[0], size, table.shape[0] - 1)
+    b0, b1 = _span(lo_y, hi_y, lo[1], size, table.shape[1] - 1)
+    c0, c1 = _span(lo_z, hi_z, lo[2], size, table.shape[2] - 1)
+    if a0 >= a1 or b0 >= b1 or c0 >= c1:
+        return True
+    count = (table[a1, b1, c1] - table[a0, b1, c1] - table[a1, b0, c1] - table[a1, b1, c0]
+             + table[a0, b0, c1] + table[a0, b1, c0] + table[a1, b0, c0] - table[a0, b0, c0])
+    return count == 0
 
 
 @njit(cache=True, error_model="numpy")
 def _clear(table, lo, size, box_lo, box_hi):
-    """Per box (M, 3 corners): does it overlap no voxel counted in the summed-volume ``table``?"""
-    m = len(box_lo)
-    out = np.empty(m, np.bool_)
-    first, last = np.empty(3, np.int64), np.empty(3, np.int64)
-    for q in range(m):
-        empty = False
-        for d in range(3):
-            n = table.shape[d] - 1
-            first[d] = max(int(np.floor((box_lo[q, d] - lo[d]) / size)), 0)
-            last[d] = min(int(np.floor((box_hi[q, d] - lo[d]) / size)), n - 1) + 1
-            if first[d] >= last[d]:
-                empty = True
-        if empty:
-            out[q] = True
-            continue
-        a0, b0, c0 = first[0], first[1], first[2]
-        a1, b1, c1 = last[0], last[1], last[2]
-        count = (table[a1, b1, c1] - table[a0, b1, c1] - table[a1, b0, c1] - table[a1, b1, c0]
-                 + table[a0, b0, c1] + table[a0, b1, c0] + table[a1, b0, c0] - table[a0, b0, c0])
-        out[q] = count == 0
+    """:func:`box_clear` of boxes (M, 3 corners), (M,) bool."""
+    out = np.empty(len(box_lo), np.bool_)
+    for q in range(len(box_lo)):
+        out[q] = box_clear(table, lo, size, box_lo[q, 0], box_lo[q, 1], box_lo[q, 2],
+                           box_hi[q, 0], box_hi[q, 1], box_hi[q, 2])
     return out
 
 
@@ -173,18 +189,20 @@ class SurfaceVoxels:
         shape = np.floor((hi - self.lo) / self.size).astype(np.int64) + 3
         blocked = _blocked(vertices, faces, self.lo, self.size, shape)
         counted = _not_outside(blocked)
-        self._steps = _steps(blocked)
-        self._table = np.zeros(shape + 1, dtype=np.int64)
-        self._table[1:, 1:, 1:] = counted.cumsum(0).cumsum(1).cumsum(2)
+        self.steps = _steps(blocked)
+        """Chebyshev distance of every voxel to the nearest blocked one, in voxels (int32)."""
+        self.table = np.zeros(shape + 1, dtype=np.int64)
+        """Summed-volume table of the voxels not outside, (shape + 1) (int64)."""
+        self.table[1:, 1:, 1:] = counted.cumsum(0).cumsum(1).cumsum(2)
 
     def clear(self, box_lo: np.ndarray, box_hi: np.ndarray) -> np.ndarray:
         """Whether each axis-aligned box (corners (M, 3), metres) lies wholly outside the mesh,
         by its voxels, (M,) bool. False says nothing."""
         box_lo = np.ascontiguousarray(box_lo, dtype=np.float64)
         box_hi = np.ascontiguousarray(box_hi, dtype=np.float64)
-        return _clear(self._table, self.lo, self.size, box_lo, box_hi)
+        return _clear(self.table, self.lo, self.size, box_lo, box_hi)
 
     def distance_below(self, points: np.ndarray) -> np.ndarray:
         """A lower bound of each point's (M, 3) distance to the mesh, metres (M,)."""
-        return _distance_below(self._steps, self.lo, self.size,
+        return _distance_below(self.steps, self.lo, self.size,
                                np.ascontiguousarray(points, dtype=np.float64))

@@ -3,12 +3,12 @@
 The inner loops of isf are numba kernels: the moment sums and steps of IPFO
 (:mod:`isf.moment_kernels`), the nearest-point search (:mod:`isf.nearest`), the
 correspondence filters (:mod:`isf.correspondence`), the finger step's active set
-(:mod:`isf.box_qp`), the kinematics (:mod:`isf.chain`) and the repair's QP
-(:mod:`isf.dense_qp`). numba compiles a kernel at its first call and caches the
-machine code on disk (in the package's ``__pycache__`` folders, or in numba's user cache
-when those are read-only; ``NUMBA_CACHE_DIR`` moves it). So the first run after
-installing or upgrading isf compiles them (35-40 s on a 2-core machine), and
-later runs load them in under a second.
+(:mod:`isf.box_qp`), the kinematics (:mod:`isf.chain`), the repair's QP
+(:mod:`isf.dense_qp`) and the collision checks (``isf.collision_kernel``). numba compiles
+a kernel at its first call and caches the machine code on disk (in the package's
+``__pycache__`` folders, or in numba's user cache when those are read-only;
+``NUMBA_CACHE_DIR`` moves it). So the first run after installing or upgrading isf compiles
+them (35-40 s on a 2-core machine), and later runs load them in under a second.
 
 :func:`warm_up` compiles (or loads) every kernel on tiny inputs of the types the engine
 passes, so that the cost lands where the caller wants it: ``isf plan`` calls it before
@@ -23,14 +23,14 @@ import numpy as np
 import pinocchio as pin
 import trimesh
 
-from .collision_elements import Element, SignedDistanceGrid
-from .collision_surface import TangentPlanes
+from .collision import CollisionChecker
 from .collision_voxels import SurfaceVoxels
 from .convex_elements import ConvexElements
 from .correspondence import match
 from .dense_qp import solve_dense_qp
 from .fit import fit_many
 from .gripper import ContactSurface, Gripper, LinkGeometry
+from .nearest import NearestPoints
 from .object_surface import ObjectSurface
 
 __all__ = ["warm_up"]
@@ -49,14 +49,37 @@ def _tiny_gripper() -> Gripper:
     return Gripper("warm-up", model, (pad,), np.zeros(1))
 
 
+def _check_collisions() -> None:
+    """Collision checks of a convex block (the pad's) and a non-convex ring above it against a
+    closed mesh, apart and pressed in."""
+    tiny = _tiny_gripper()
+    block = trimesh.creation.box(extents=(0.02, 0.02, 0.01))
+    block.apply_translation((0.05, 0.0, 0.005))  # the pad lies on its lower face
+    ring = trimesh.creation.torus(0.006, 0.002, major_sections=12, minor_sections=6)
+    ring.apply_translation((0.05, 0.0, 0.02))
+    gripper = Gripper("warm-up", tiny.model, tiny.surfaces, tiny.q_initial, geometries=(
+        LinkGeometry("link", "block", block.vertices, block.faces),
+        LinkGeometry("link", "ring", ring.vertices, ring.faces)))
+    cube = trimesh.creation.box(extents=(0.04, 0.04, 0.03))
+    cube.apply_translation((0.05, 0.0, -0.016))
+    points, faces = trimesh.sample.sample_surface(cube, 2000, seed=0)
+    obj = ObjectSurface(points, cube.face_normals[faces], spacing=0.001, mesh_vertices=cube.vertices,
+                        mesh_faces=cube.faces)
+    checker = CollisionChecker(gripper, obj)
+    for depth in (0.0, 0.004, 0.02):  # apart (clearance measured), block in, ring in
+        T = np.eye(4)
+        T[2, 3] = -depth
+        checker.check(T, np.zeros(1))
+
+
 def warm_up() -> float:
     """Compile, or load from the cache, every compiled kernel of isf; returns the seconds taken.
 
     It fits a one-joint gripper onto a small plane (the engine's own calls, so its own
     argument types), once more with IPFO pausing for Python (as it does for OSQP finger steps
-    and for joints without compiled kinematics), asks for nearest points as the collision
-    checks and the repair do, runs the repair's convex-element test and a small repair QP,
-    and the collision checks' voxel and element tests.
+    and for joints without compiled kinematics), asks for nearest points as the repair does,
+    runs the repair's convex-element test and a small repair QP, the voxel tests, and
+    collision checks of a convex and a non-convex element against a mesh, apart and pressed in.
     """
     start = time.perf_counter()
     grid = np.stack(np.meshgrid(*[np.linspace(-0.02, 0.02, 41)] * 2), axis=-1).reshape(-1, 2)
@@ -69,19 +92,14 @@ def warm_up() -> float:
     paused._chain = None  # as for joints without compiled kinematics: IPFO pauses for Pinocchio
     fit_many(paused, plane, T[None], np.array([[0.1]]))  # a tilted pad: the joint turns
     plane.nearest(plane.points[:2])  # as the collision repair asks
+    NearestPoints(plane.points).query_k(plane.points[:2], 6)
     match(plane, plane.points[:8] + [0.0, 0.0, 0.001], outlier_factor=3.0, outlier_floor=0.005,
           reject_duplicates=True)
-    planes = TangentPlanes(plane.points, plane.normals, 0.001)  # as the collision checks ask
-    bounds = np.array([[0.04, -0.01, -0.01], [0.06, 0.01, 0.01]])
-    SignedDistanceGrid(planes, bounds, 64).interpolate(plane.points[:2])
     box = trimesh.creation.box(extents=(0.01, 0.01, 0.01))
     ConvexElements([(box.vertices, box.faces)], np.zeros(1), np.zeros(1)).rows(
         np.eye(4), np.eye(3)[None], np.zeros((1, 3)), plane.points, 0.003)
     solve_dense_qp(np.eye(2), np.ones(2), np.ones((1, 2)), np.zeros(1), np.ones(1))
-    voxels = SurfaceVoxels(box.vertices, box.faces)  # the collision checks' voxels and elements
+    voxels = SurfaceVoxels(box.vertices, box.faces)  # the collision checks' voxels
     voxels.clear(box.vertices, box.vertices), voxels.distance_below(box.vertices)
-    element = Element(LinkGeometry("link", "box", box.vertices, box.faces), 0,
-                      np.random.default_rng(0))
-    T[:3, 3] = [0.05, 0.0, 0.0]  # some plane points inside the box
-    element.object_depth(plane.points, T, 0.002)
+    _check_collisions()
     return time.perf_counter() - start
