@@ -5,8 +5,9 @@ edge can poke into a link between its samples. For a closed convex element the t
 exact: a point lies inside when it is below every face plane ``n . x <= d``. The repair
 pushes such points (and those within a reach of the element) out through the element's
 nearest face. :meth:`ConvexElements.rows` finds them for all elements at once, in compiled
-code: the object points within each element's bounding sphere, a coarse test against a few
-spread-out faces, then all faces.
+code: the object points within each element's bounding sphere (found through a
+:class:`isf.point_grid.PointGrid`), then its faces in spread-out order, up to the first that
+leaves the point out.
 """
 
 from __future__ import annotations
@@ -16,6 +17,9 @@ from typing import NamedTuple
 import numpy as np
 import trimesh
 from numba import njit
+from scipy.spatial import HalfspaceIntersection, QhullError
+
+from .point_grid import PointGrid, ball_candidates
 
 __all__ = ["ConvexElements", "ConvexRows"]
 
@@ -23,9 +27,6 @@ MAX_PLANES = 128
 """Face planes kept per element (spread-out normals): a subset of a convex element's face
 planes bounds a slightly larger polytope, which errs on the safe side and keeps a finely
 tessellated sphere cheap (1280 faces -> 128 planes: ~0.2 mm larger at 12 mm)."""
-
-COARSE_PLANES = 16
-"""Of them, the first (most spread-out) ones, tried before all."""
 
 
 class ConvexRows(NamedTuple):
@@ -70,6 +71,19 @@ def _face_planes(vertices: np.ndarray, faces: np.ndarray):
     return planes, centre, float(np.linalg.norm(mesh.vertices - centre, axis=1).max())
 
 
+def _polytope_radius(planes: np.ndarray, centre: np.ndarray) -> float:
+    """Largest distance from ``centre`` (3,), an inner point, of the polytope ``n . x <= d`` of
+    ``planes`` (P, 4), padded for rounding; inf when it is unbounded or qhull fails."""
+    try:
+        corners = HalfspaceIntersection(np.c_[planes[:, :3], -planes[:, 3]], centre).intersections
+    except QhullError:
+        return np.inf
+    if not np.all(np.isfinite(corners)):
+        return np.inf
+    radius = float(np.linalg.norm(corners - centre, axis=1).max())
+    return radius * (1.0 + 1e-9) + 1e-12
+
+
 class ConvexElements:
     """The closed convex elements among a gripper's link geometries, in their link frames.
 
@@ -95,31 +109,41 @@ class ConvexElements:
         self._planes = np.concatenate([f[0] for _, f in found]) if found else np.zeros((0, 4))
         self._centre = np.array([f[1] for _, f in found]).reshape(-1, 3)
         self._radius = np.array([f[2] for _, f in found])
+        # of the polytope of the kept planes (larger than the element when planes were dropped)
+        self._extent = np.array([_polytope_radius(f[0], f[1]) for _, f in found])
 
     def __len__(self) -> int:
         return len(self.element)
 
-    def rows(self, T: np.ndarray, R: np.ndarray, p: np.ndarray, points: np.ndarray,
-             reach: float) -> ConvexRows:
-        """The object ``points`` (N, 3) inside, or within ``reach`` (m) beyond the floor of, each
+    def rows(self, T: np.ndarray, R: np.ndarray, p: np.ndarray, grid: PointGrid, reach: float,
+             keep: int) -> ConvexRows:
+        """The object points of ``grid`` inside, or within ``reach`` (m) beyond the floor of, each
         element, with the gripper at palm pose ``T`` (4, 4) and link poses ``R`` (L, 3, 3), ``p``
-        (L, 3) (gripper frame). Rows come element by element, points in index order."""
+        (L, 3) (gripper frame); of an element's points, only those that may be among its
+        ``keep`` deepest (the others have ``keep`` rows of that element strictly deeper, beyond
+        their floor). Rows come element by element, points in index order."""
         R_links = T[:3, :3] @ R[self.owner]  # element (link) rotations in the object frame
         origins = p[self.owner] @ T[:3, :3].T + T[:3, 3]
-        return ConvexRows(*_rows(np.ascontiguousarray(points, dtype=float), R_links, origins,
-                                 self._centre, self._radius, self.floor, self._planes,
-                                 self._plane_start, COARSE_PLANES, float(reach)))
+        return ConvexRows(*_rows(grid.points, *grid.arrays, R_links, origins, self._centre,
+                                 self._radius, self._extent, self.floor, self._planes,
+                                 self._plane_start, float(reach), int(keep)))
 
 
 @njit(cache=True, error_model="numpy")
-def _rows(points, R_links, origins, centres, radii, floors, planes, plane_start, n_coarse, reach):
+def _rows(points, order, start, lo, cell, shape, R_links, origins, centres, radii, extents, floors,
+          planes, plane_start, reach, keep):
     """:meth:`ConvexElements.rows`, compiled: (element (K,), foot (K, 3), normal (K, 3), depth (K,))."""
     capacity = 256
     element, foot = np.empty(capacity, np.int64), np.empty((capacity, 3))
     normal, depth = np.empty((capacity, 3)), np.empty(capacity)
     count = 0
     local = np.empty(3)
+    near = np.empty(len(points), np.int64)
+    point = np.empty(capacity, np.int64)  # the object point of each row
+    deepest = np.empty(keep)  # violations (floor - depth) of an element's deepest rows, descending
     for c in range(len(radii)):
+        first_row = count
+        deepest[:] = -np.inf
         R, o = R_links[c], origins[c]
         centre = np.empty(3)
         for i in range(3):
@@ -127,37 +151,51 @@ def _rows(points, R_links, origins, centres, radii, floors, planes, plane_start,
         ball2 = (radii[c] + reach) ** 2
         limit = floors[c] + reach
         first, last = plane_start[c], plane_start[c + 1]
-        for k in range(len(points)):
+        for k in near[:ball_candidates(centre, radii[c] + reach, order, start, lo, cell, shape, near)]:
             d2 = 0.0
             for i in range(3):
                 d2 += (points[k, i] - centre[i]) ** 2
             if d2 > ball2:
                 continue
+            # a point rho from the centre is at most extent - rho deep: skip it when that is
+            # shallower than `keep` rows already found
+            if floors[c] - min(np.sqrt(d2) - extents[c], 0.0) < deepest[keep - 1]:
+                continue
             for j in range(3):  # the point in the element's link frame
                 local[j] = ((points[k, 0] - o[0]) * R[0, j] + (points[k, 1] - o[1]) * R[1, j]
                             + (points[k, 2] - o[2]) * R[2, j])
             best, face = -np.inf, -1
-            outside = False
             for f in range(first, last):
                 sd = (planes[f, 0] * local[0] + planes[f, 1] * local[1] + planes[f, 2] * local[2]
                       - planes[f, 3])
                 if sd > best:
                     best, face = sd, f
-                if f == first + n_coarse - 1 and best >= limit:  # out by a coarse face already
-                    outside = True
+                # out by this face already, or shallower than `keep` rows found
+                if best >= limit or floors[c] - best < deepest[keep - 1]:
                     break
-            if outside or best >= limit:
+            if best >= limit or floors[c] - best < deepest[keep - 1]:
                 continue
+            violation = floors[c] - best
+            slot = keep - 1
+            while slot > 0 and deepest[slot - 1] < violation:
+                deepest[slot] = deepest[slot - 1]
+                slot -= 1
+            deepest[slot] = violation
             if count == capacity:
                 capacity *= 2
                 element, foot = _grow(element, capacity), _grow(foot, capacity)
                 normal, depth = _grow(normal, capacity), _grow(depth, capacity)
-            element[count], depth[count] = c, best
+                point = _grow(point, capacity)
+            element[count], depth[count], point[count] = c, best, k
             for i in range(3):
                 foot[count, i] = local[i] - best * planes[face, i]
                 normal[count, i] = -(R[i, 0] * planes[face, 0] + R[i, 1] * planes[face, 1]
                                      + R[i, 2] * planes[face, 2])
             count += 1
+        # the grid lists points cell by cell: put the element's rows in point order
+        by_point = np.argsort(point[first_row:count]) + first_row
+        foot[first_row:count], normal[first_row:count] = foot[by_point], normal[by_point]
+        depth[first_row:count] = depth[by_point]
     return element[:count].copy(), foot[:count].copy(), normal[:count].copy(), depth[:count].copy()
 
 
