@@ -218,6 +218,20 @@ class ClearanceRepair:
         self._contact_frames = np.array([gripper.model.getFrameId(link)
                                          for link in gripper.contact_links], dtype=int)
         self._surfaces = Segments(gripper.point_surface)  # contact points grouped by surface
+        # Millimetre units in the QP: x_mm = x * scale (v in mm, w in rad, revolute dq in rad,
+        # prismatic in mm); a row a (metres of height per SI unit of x) becomes a * unit (mm
+        # per unit of x_mm).
+        revolute = gripper.revolute
+        self._scale = np.concatenate([np.full(3, _MM), np.ones(3), np.where(revolute, 1.0, _MM)])
+        self._unit = _MM / self._scale
+        lever_mm2 = (cfg.lever * _MM) ** 2
+        self._regularisation = 2.0 * np.diag(np.concatenate([
+            np.full(3, 1.0), np.full(3, lever_mm2), np.where(revolute, lever_mm2, 1.0)])
+            * cfg.regularisation)
+        self._step = np.concatenate([  # trust region of x_mm
+            np.full(3, 0.0 if cfg.lock_palm else cfg.max_translation_step * _MM),
+            np.full(3, 0.0 if cfg.lock_palm else cfg.max_rotation_step),
+            np.where(revolute, cfg.max_joint_step, cfg.max_translation_step * _MM)])
 
     # ------------------------------------------------------------ kinematics
     def _frame_jacobians(self, q: np.ndarray, frames: np.ndarray):
@@ -274,7 +288,8 @@ class ClearanceRepair:
         planes = self._planes
         if self._resampled:  # the plane of the nearest dense point, one of the 6
             _, first = planes.tree.query(world[close])
-            lower = np.einsum("mi,mi->m", world[close] - planes.points[first], planes.normals[first])
+            lower = np.einsum("mi,mi->m", world[close] - planes.points[first],
+                              planes.normals[first])
         else:  # the object's own points: its nearest point is the nearest dense one
             lower = heights[close]
         bound = np.full(len(world), np.inf)
@@ -286,9 +301,9 @@ class ClearanceRepair:
         for most_likely in (True, False):
             candidates = np.flatnonzero(~exact)
             todo = undecided(bound[candidates], element[candidates],
-                             np.r_[violation[exact], known.violation],
-                             np.r_[element[exact], known.element], n_elements, cfg.activation,
-                             max_rows, _BOUND_SLACK)
+                             np.concatenate([violation[exact], known.violation]),
+                             np.concatenate([element[exact], known.element]), n_elements,
+                             cfg.activation, max_rows, _BOUND_SLACK)
             candidates = candidates[todo]
             if most_likely:
                 candidates = candidates[deepest_rows(bound[candidates], element[candidates],
@@ -374,8 +389,8 @@ class ClearanceRepair:
             last = residual
             active = self._active_rows(rows.violation, rows.element)
             owner, local = rows.owner[active], rows.local[active]
-            world = _to_object(T, R, p, owner, local)
-            centre = contact[0].mean(axis=0) if len(contact[0]) else world.mean(axis=0)
+            centre = contact[0].mean(axis=0) if len(contact[0]) else \
+                _to_object(T, R, p, owner, local).mean(axis=0)
             c_rows = self._contact_jacobian_rows(T, q, contact, centre)
             _, a_rows = self._points_and_rows(local, owner, R, p, J, T, centre, rows.normal[active])
             x = self._solve(c_rows, contact, a_rows, rows.violation[active], rows.element[active],
@@ -486,14 +501,10 @@ class ClearanceRepair:
         Returns:
             (H, f, A, lo, hi, scale): ``x_mm = x * scale`` (millimetre units), ``s`` the slacks.
         """
-        cfg, g = self.config, self.gripper
-        n = g.n_joints
-        nx = 6 + n
+        cfg = self.config
+        nx = len(self._scale)
         m = len(a_rows)
-        # Millimetre units: x_mm = x * scale (v in mm, w in rad, revolute dq in rad, prismatic in
-        # mm); a row a (metres of height per SI unit of x) becomes a * unit (mm per unit of x_mm).
-        scale = np.r_[np.full(3, _MM), np.ones(3), np.where(g.revolute, 1.0, _MM)]
-        unit = _MM / scale
+        unit = self._unit
         points, plane_o, plane_n, _ = contact
         k = len(points)
         P = np.zeros((nx, nx))
@@ -503,30 +514,25 @@ class ClearanceRepair:
             res = _MM * np.einsum("ij,ij->i", points - plane_o, plane_n)
             P += 2.0 * cfg.contact_weight * B.T @ B
             qv += 2.0 * cfg.contact_weight * B.T @ res
-        lever_mm = cfg.lever * _MM
-        reg = np.r_[np.full(3, 1.0), np.full(3, lever_mm**2),
-                    np.where(g.revolute, lever_mm**2, 1.0)] * cfg.regularisation
-        P += 2.0 * np.diag(reg)
+        P += self._regularisation
         # one slack per geometry element: n^T A x + s_e >= violation, s_e >= 0
         elements, which = np.unique(element, return_inverse=True)
         ns = len(elements)
         H = np.zeros((nx + ns, nx + ns))
         H[:nx, :nx] = P
         H[nx:, nx:] = 2.0 * cfg.slack_weight * np.eye(ns)
-        f = np.r_[qv, np.zeros(ns)]
+        f = np.concatenate([qv, np.zeros(ns)])
         A = np.zeros((m + ns + nx, nx + ns))
         A[:m, :nx] = a_rows * unit
         A[np.arange(m), nx + which] = 1.0
-        A[m:, :] = np.eye(nx + ns)[np.r_[nx:nx + ns, 0:nx]]
-        step = np.r_[np.full(3, cfg.max_translation_step * _MM), np.full(3, cfg.max_rotation_step),
-                     np.where(g.revolute, cfg.max_joint_step, cfg.max_translation_step * _MM)]
-        if cfg.lock_palm:
-            step[:6] = 0.0
-        lo = np.r_[-step[:6], np.minimum(0.0, np.maximum(-step[6:], (g.lower - q) * scale[6:]))]
-        hi = np.r_[step[:6], np.maximum(0.0, np.minimum(step[6:], (g.upper - q) * scale[6:]))]
-        lower = np.r_[violation * _MM, np.zeros(ns), lo]
-        upper = np.r_[np.full(m, np.inf), np.full(ns, np.inf), hi]
-        return H, f, A, lower, upper, scale
+        A[np.arange(m, m + ns + nx), np.r_[nx:nx + ns, 0:nx]] = 1.0
+        step, joints = self._step, self._scale[6:]
+        g = self.gripper
+        lo = np.minimum(0.0, np.maximum(-step[6:], (g.lower - q) * joints))
+        hi = np.maximum(0.0, np.minimum(step[6:], (g.upper - q) * joints))
+        lower = np.concatenate([violation * _MM, np.zeros(ns), -step[:6], lo])
+        upper = np.concatenate([np.full(m + ns, np.inf), step[:6], hi])
+        return H, f, A, lower, upper, self._scale
 
     def _solve(self, c_rows, contact, a_rows, violation, element, q) -> np.ndarray | None:
         """One QP step ``x = (v, w, dq)`` in SI units, or None when no solver finds one.

@@ -151,7 +151,8 @@ def _rows(points, order, start, lo, cell, shape, R_links, origins, centres, radi
         ball2 = (radii[c] + reach) ** 2
         limit = floors[c] + reach
         first, last = plane_start[c], plane_start[c + 1]
-        for k in near[:ball_candidates(centre, radii[c] + reach, order, start, lo, cell, shape, near)]:
+        n_near = ball_candidates(centre, radii[c] + reach, order, start, lo, cell, shape, near)
+        for k in near[:n_near]:
             d2 = 0.0
             for i in range(3):
                 d2 += (points[k, i] - centre[i]) ** 2
