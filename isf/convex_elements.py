@@ -132,49 +132,71 @@ class ConvexElements:
 @njit(cache=True, error_model="numpy")
 def _rows(points, order, start, lo, cell, shape, R_links, origins, centres, radii, extents, floors,
           planes, plane_start, reach, keep):
-    """:meth:`ConvexElements.rows`, compiled: (element (K,), foot (K, 3), normal (K, 3), depth (K,))."""
+    """:meth:`ConvexElements.rows`, compiled: (element (K,), foot (K, 3), normal (K, 3), depth
+    (K,)). An element's points are tried nearest to its centre first (likely the deepest), so
+    that the points shallower than ``keep`` rows found are soon skipped."""
     capacity = 256
     element, foot = np.empty(capacity, np.int64), np.empty((capacity, 3))
     normal, depth = np.empty((capacity, 3)), np.empty(capacity)
     count = 0
     local = np.empty(3)
     near = np.empty(len(points), np.int64)
+    rho = np.empty(len(points))  # distance of each point in the ball from the element's centre
     point = np.empty(capacity, np.int64)  # the object point of each row
     deepest = np.empty(keep)  # violations (floor - depth) of an element's deepest rows, descending
+    central = np.empty(keep, np.int64)  # the points in the ball nearest to the centre
     for c in range(len(radii)):
         first_row = count
         deepest[:] = -np.inf
         R, o = R_links[c], origins[c]
         centre = np.empty(3)
         for i in range(3):
-            centre[i] = R[i, 0] * centres[c, 0] + R[i, 1] * centres[c, 1] + R[i, 2] * centres[c, 2] + o[i]
+            centre[i] = (R[i, 0] * centres[c, 0] + R[i, 1] * centres[c, 1]
+                         + R[i, 2] * centres[c, 2] + o[i])
         ball2 = (radii[c] + reach) ** 2
-        limit = floors[c] + reach
-        first, last = plane_start[c], plane_start[c + 1]
-        n_near = ball_candidates(centre, radii[c] + reach, order, start, lo, cell, shape, near)
-        for k in near[:n_near]:
+        hint = plane_start[c]
+        n_ball = 0
+        n_central = 0
+        for k in near[:ball_candidates(centre, radii[c] + reach, order, start, lo, cell, shape,
+                                       near)]:
             d2 = 0.0
             for i in range(3):
                 d2 += (points[k, i] - centre[i]) ** 2
             if d2 > ball2:
                 continue
-            # a point rho from the centre is at most extent - rho deep: skip it when that is
-            # shallower than `keep` rows already found
-            if floors[c] - min(np.sqrt(d2) - extents[c], 0.0) < deepest[keep - 1]:
+            near[n_ball], rho[n_ball] = k, np.sqrt(d2)  # compact: n_ball never passes the scan
+            slot = min(n_central, keep - 1)
+            if n_central < keep or rho[n_ball] < rho[central[slot]]:
+                while slot > 0 and rho[central[slot - 1]] > rho[n_ball]:
+                    central[slot] = central[slot - 1]
+                    slot -= 1
+                central[slot] = n_ball
+                n_central = min(n_central + 1, keep)
+            n_ball += 1
+        for t in range(n_central + n_ball):  # the central points, then the others
+            m = central[t] if t < n_central else t - n_central
+            if rho[m] == np.inf:  # a central point, done
                 continue
+            # a point rho from the centre is at most extent - rho deep: skip it when that
+            # is shallower than `keep` rows already found
+            shallow = floors[c] - min(rho[m] - extents[c], 0.0) < deepest[keep - 1]
+            if t < n_central:
+                rho[m] = np.inf
+            if shallow:
+                continue
+            k = near[m]
             for j in range(3):  # the point in the element's link frame
                 local[j] = ((points[k, 0] - o[0]) * R[0, j] + (points[k, 1] - o[1]) * R[1, j]
                             + (points[k, 2] - o[2]) * R[2, j])
-            best, face = -np.inf, -1
-            for f in range(first, last):
-                sd = (planes[f, 0] * local[0] + planes[f, 1] * local[1] + planes[f, 2] * local[2]
-                      - planes[f, 3])
-                if sd > best:
-                    best, face = sd, f
-                # out by this face already, or shallower than `keep` rows found
-                if best >= limit or floors[c] - best < deepest[keep - 1]:
-                    break
-            if best >= limit or floors[c] - best < deepest[keep - 1]:
+            # the face that left the last point out often leaves this one out too
+            sd = (planes[hint, 0] * local[0] + planes[hint, 1] * local[1]
+                  + planes[hint, 2] * local[2] - planes[hint, 3])
+            if sd >= floors[c] + reach or floors[c] - sd < deepest[keep - 1]:
+                continue
+            best, face = _deepest_face(local, planes, plane_start[c], plane_start[c + 1],
+                                       floors[c] + reach, floors[c], deepest[keep - 1])
+            if face < 0:
+                hint = -1 - face
                 continue
             violation = floors[c] - best
             slot = keep - 1
@@ -193,11 +215,28 @@ def _rows(points, order, start, lo, cell, shape, R_links, origins, centres, radi
                 normal[count, i] = -(R[i, 0] * planes[face, 0] + R[i, 1] * planes[face, 1]
                                      + R[i, 2] * planes[face, 2])
             count += 1
-        # the grid lists points cell by cell: put the element's rows in point order
+        # put the element's rows in point order
         by_point = np.argsort(point[first_row:count]) + first_row
         foot[first_row:count], normal[first_row:count] = foot[by_point], normal[by_point]
         depth[first_row:count] = depth[by_point]
     return element[:count].copy(), foot[:count].copy(), normal[:count].copy(), depth[:count].copy()
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _deepest_face(local, planes, first, last, limit, floor, cut):
+    """The face plane (rows ``first:last`` of ``planes``) a point ``local`` (3,) lies highest
+    above and that height, ``(height, face)``; or, when the point is out by ``limit`` or more
+    or ``floor - height`` falls below ``cut``, ``(height so far, -1 - the face showing it)``
+    (it stops at that face)."""
+    best, face = -np.inf, -1
+    for f in range(first, last):
+        sd = planes[f, 0] * local[0] + planes[f, 1] * local[1] + planes[f, 2] * local[2] \
+            - planes[f, 3]
+        if sd > best:
+            best, face = sd, f
+            if best >= limit or floor - best < cut:
+                return best, -1 - f
+    return best, face
 
 
 @njit(cache=True)

@@ -1,8 +1,8 @@
 """A fixed point set binned in a uniform grid, to find the points near a ball quickly.
 
-:func:`ball_candidates` lists the points of the grid cells a ball's bounding box overlaps
-(plus one cell on every side, so that rounding never hides a point on the box's faces): a
-superset of the points in the ball, without testing every point.
+:func:`ball_candidates` lists the points of the grid cells within a cell's width of a ball
+(the extra width so that rounding never hides a point near a cell's faces): a superset of the
+points in the ball, without testing every point.
 """
 
 from __future__ import annotations
@@ -59,8 +59,8 @@ def _cell_keys(points, lo, cell, shape):
 
 @njit(cache=True, error_model="numpy")
 def ball_candidates(centre, radius, order, start, lo, cell, shape, out):
-    """Indices of the points in the cells around the ball (``centre`` (3,), ``radius`` m),
-    written to the front of ``out`` (N,) cell by cell; returns how many."""
+    """Indices of the points in the cells within a cell's width of the ball (``centre`` (3,),
+    ``radius`` m), written to the front of ``out`` (N,) cell by cell; returns how many."""
     first, last = np.empty(3, np.int64), np.empty(3, np.int64)
     for d in range(3):
         if centre[d] + radius < lo[d] - cell or centre[d] - radius > lo[d] + shape[d] * cell + cell:
@@ -69,10 +69,24 @@ def ball_candidates(centre, radius, order, start, lo, cell, shape, out):
         last[d] = _cell_index(centre[d] + radius, lo[d], cell, shape[d]) + 1
         first[d], last[d] = max(first[d], 0), min(last[d], shape[d] - 1)
     n = 0
+    reach2 = (radius + cell) ** 2  # cells within a cell's width of the ball
     for i in range(first[0], last[0] + 1):
+        gi = _gap(centre[0], lo[0] + i * cell, cell) ** 2
         for j in range(first[1], last[1] + 1):
+            gij = gi + _gap(centre[1], lo[1] + j * cell, cell) ** 2
+            if gij > reach2:
+                continue
             row = (i * shape[1] + j) * shape[2]
-            for k in range(start[row + first[2]], start[row + last[2] + 1]):
-                out[n] = order[k]
-                n += 1
+            for k in range(first[2], last[2] + 1):
+                if gij + _gap(centre[2], lo[2] + k * cell, cell) ** 2 > reach2:
+                    continue
+                for m in range(start[row + k], start[row + k + 1]):
+                    out[n] = order[m]
+                    n += 1
     return n
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _gap(x, low, cell):
+    """Distance from ``x`` to the interval ``[low, low + cell]`` along one axis."""
+    return max(low - x, x - low - cell, 0.0)
