@@ -46,41 +46,60 @@ class ConvexRows(NamedTuple):
     depth: np.ndarray
 
 
-def _spread(directions: np.ndarray, count: int) -> np.ndarray:
-    """Indices of at most ``count`` rows of ``directions`` (N, 3) in farthest-point order."""
-    if len(directions) <= count:
-        return np.arange(len(directions))
-    chosen = [0]
-    gap = np.linalg.norm(directions - directions[0], axis=1)
-    for _ in range(count - 1):
-        k = int(gap.argmax())
-        chosen.append(k)
-        gap = np.minimum(gap, np.linalg.norm(directions - directions[k], axis=1))
-    return np.array(chosen)
+@njit(cache=True, error_model="numpy")
+def _spread(directions, count):
+    """Indices (at most ``count``) of rows of ``directions`` (N, 3) in farthest-point order."""
+    n = len(directions)
+    if n <= count:
+        return np.arange(n)
+    chosen = np.empty(count, np.int64)
+    chosen[0] = 0
+    gap = np.empty(n)
+    for i in range(n):
+        gap[i] = _distance(directions, i, 0)
+    for c in range(1, count):
+        k = np.argmax(gap)
+        chosen[c] = k
+        for i in range(n):
+            gap[i] = min(gap[i], _distance(directions, i, k))
+    return chosen
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _distance(points, i, j):
+    """Distance between rows ``i`` and ``j`` of ``points`` (N, 3)."""
+    return np.sqrt((points[i, 0] - points[j, 0]) ** 2 + (points[i, 1] - points[j, 1]) ** 2
+                   + (points[i, 2] - points[j, 2]) ** 2)
 
 
 def _face_planes(vertices: np.ndarray, faces: np.ndarray):
-    """Outward face planes ``(n, d)`` (P, 4) (spread-out order), centre (3,) and radius of a
-    closed convex mesh, or None when the mesh is not one."""
+    """Outward face planes ``(n, d)`` (P, 4) (spread-out order), centre (3,), radius and extent
+    (see :func:`_extent`) of a closed convex mesh, or None when the mesh is not one."""
     mesh = trimesh.Trimesh(np.asarray(vertices, float), np.asarray(faces, np.int64))
-    if not (len(mesh.faces) and mesh.is_watertight and mesh.is_winding_consistent and mesh.is_convex):
+    if not (len(mesh.faces) and mesh.is_watertight and mesh.is_winding_consistent and
+            mesh.is_convex):
         return None
     n = np.sign(mesh.volume) * mesh.face_normals
-    planes = np.c_[n, np.einsum("ij,ij->i", n, mesh.triangles[:, 0])][_spread(n, MAX_PLANES)]
+    kept = _spread(n, MAX_PLANES)
+    planes = np.c_[n, np.einsum("ij,ij->i", n, mesh.triangles[:, 0])][kept]
     centre = mesh.vertices.mean(axis=0)
-    return planes, centre, float(np.linalg.norm(mesh.vertices - centre, axis=1).max())
+    radius = float(np.linalg.norm(mesh.vertices - centre, axis=1).max())
+    return planes, centre, radius, _extent(planes, centre, radius, len(kept) < len(n))
 
 
-def _polytope_radius(planes: np.ndarray, centre: np.ndarray) -> float:
+def _extent(planes: np.ndarray, centre: np.ndarray, radius: float, dropped: bool) -> float:
     """Largest distance from ``centre`` (3,), an inner point, of the polytope ``n . x <= d`` of
-    ``planes`` (P, 4), padded for rounding; inf when it is unbounded or qhull fails."""
-    try:
-        corners = HalfspaceIntersection(np.c_[planes[:, :3], -planes[:, 3]], centre).intersections
-    except QhullError:
-        return np.inf
-    if not np.all(np.isfinite(corners)):
-        return np.inf
-    radius = float(np.linalg.norm(corners - centre, axis=1).max())
+    ``planes`` (P, 4), padded for rounding: the element's ``radius`` when no face plane was
+    ``dropped``, else from the polytope's corners (inf when it is unbounded or qhull fails)."""
+    if dropped:
+        try:
+            halfspaces = np.c_[planes[:, :3], -planes[:, 3]]
+            corners = HalfspaceIntersection(halfspaces, centre).intersections
+        except QhullError:
+            return np.inf
+        if not np.all(np.isfinite(corners)):
+            return np.inf
+        radius = float(np.linalg.norm(corners - centre, axis=1).max())
     return radius * (1.0 + 1e-9) + 1e-12
 
 
@@ -99,8 +118,13 @@ class ConvexElements:
     """
 
     def __init__(self, geometries, owner: np.ndarray, floor: np.ndarray):
-        found = [(e, f) for e, (v, faces) in enumerate(geometries)
-                 if (f := _face_planes(v, faces)) is not None]
+        of_mesh, found = {}, []  # grippers repeat meshes (fingers): each is examined once
+        for e, (v, faces) in enumerate(geometries):
+            key = (np.asarray(v, float).tobytes(), np.asarray(faces, np.int64).tobytes())
+            if key not in of_mesh:
+                of_mesh[key] = _face_planes(v, faces)
+            if of_mesh[key] is not None:
+                found.append((e, of_mesh[key]))
         self.element = np.array([e for e, _ in found], dtype=np.int64)
         self.owner = np.asarray(owner, dtype=np.int64)[self.element]
         self.floor = np.asarray(floor, dtype=float)[self.element]
@@ -110,7 +134,7 @@ class ConvexElements:
         self._centre = np.array([f[1] for _, f in found]).reshape(-1, 3)
         self._radius = np.array([f[2] for _, f in found])
         # of the polytope of the kept planes (larger than the element when planes were dropped)
-        self._extent = np.array([_polytope_radius(f[0], f[1]) for _, f in found])
+        self._extent = np.array([f[3] for _, f in found])
 
     def __len__(self) -> int:
         return len(self.element)
