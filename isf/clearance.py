@@ -19,8 +19,9 @@ Pinocchio's frame Jacobian of its link, gripper frame).
 * Contact rows (least squares, weight ``contact_weight``): contact-surface points ``c_k`` on the
   tangent plane ``(o_k, m_k)`` of their nearest object point, like the fit's point-to-plane rows.
   In ``pull`` mode (the default) every surface is matched afresh in each step (each surface on
-  its own, :func:`isf.correspondence.match`), so pads that touch stay on the object and a pad
-  the repair lifts off is drawn back; ``hold`` keeps the points touching at the start.
+  its own: :func:`isf.correspondence.match_many` with the surfaces as groups), so pads that
+  touch stay on the object and a pad the repair lifts off is drawn back; ``hold`` keeps the
+  points touching at the start.
 * Clearance rows (inequalities), two kinds:
 
   - points sampled on every link's geometry, against the object tangent plane ``(a_i, n_i)``
@@ -33,7 +34,11 @@ Pinocchio's frame Jacobian of its link, gripper frame).
   links that carry one (a fingertip may press into the object a little). Rows are used for
   points within ``activation`` of their floor, the deepest ``max_rows`` per element. One slack
   ``s_e`` per element (weight ``slack_weight``) keeps the QP feasible when a step cannot
-  remove all penetration at once.
+  remove all penetration at once. Only the rows that may be used, or be the deepest, are
+  computed in full: a sample's 6 tangent planes are looked up only when the plane of its
+  nearest dense point (a lower bound of its height) leaves it in doubt
+  (``isf.repair_rows.undecided``), and an object point inside a convex element only while
+  it may be among the element's ``max_rows`` deepest.
 * Joint limits are hard bounds on ``q + dq``; every step is also held in a trust region.
 
 A step that overshoots (the deepest row ends above its floor although it was violated before,
@@ -42,6 +47,8 @@ brings that row to zero, when the shorter step is within ``tolerance``.
 The best state visited is returned: least penetration first, then the smallest contact residual.
 Units inside the QP are millimetres. Each QP is small and dense (tens of variables, a hundred or so
 rows) and is solved exactly by :func:`isf.dense_qp.solve_dense_qp`, with OSQP as the fallback.
+The gripper samples, convex elements and the dense object surface are prepared once and cached
+(``isf.repair_geometry``), so a repairer is cheap to build again for the same gripper and mesh.
 """
 
 from __future__ import annotations
@@ -461,9 +468,9 @@ class ClearanceRepair:
             T, q: the state.
             held: indices of the contact points to hold; None selects them.
             pull: select every contact point that matches the object like a fit's pairs
-                (:func:`isf.correspondence.match`, surface by surface, with ``contact_reach`` as
-                the outlier floor); else those within ``contact_reach`` whose normals face the
-                object normal.
+                (:func:`isf.correspondence.match_many`, each surface a group, with
+                ``contact_reach`` as the outlier floor); else those within ``contact_reach``
+                whose normals face the object normal.
 
         Returns:
             (object-frame points (K, 3), plane points (K, 3), plane normals (K, 3), indices (K,)).

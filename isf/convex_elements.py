@@ -38,12 +38,14 @@ class ConvexRows(NamedTuple):
         normal: that face's inward normal in the object frame (the direction the element must
             move for the point to leave it), (K, 3).
         depth: signed distance of the point above that face plane (negative inside), (K,), m.
+        point: index of the object point, (K,).
     """
 
     element: np.ndarray
     foot: np.ndarray
     normal: np.ndarray
     depth: np.ndarray
+    point: np.ndarray
 
 
 @njit(cache=True, error_model="numpy")
@@ -144,8 +146,8 @@ class ConvexElements:
         """The object points of ``grid`` inside, or within ``reach`` (m) beyond the floor of, each
         element, with the gripper at palm pose ``T`` (4, 4) and link poses ``R`` (L, 3, 3), ``p``
         (L, 3) (gripper frame); of an element's points, only those that may be among its
-        ``keep`` deepest (the others have ``keep`` rows of that element strictly deeper, beyond
-        their floor). Rows come element by element, points in index order."""
+        ``keep`` deepest (a point left out has ``keep`` rows of its element with larger
+        violations ``floor - depth``). Rows come element by element, points in index order."""
         R_links = T[:3, :3] @ R[self.owner]  # element (link) rotations in the object frame
         origins = p[self.owner] @ T[:3, :3].T + T[:3, 3]
         return ConvexRows(*_rows(grid.points, *grid.arrays, R_links, origins, self._centre,
@@ -157,8 +159,8 @@ class ConvexElements:
 def _rows(points, order, start, lo, cell, shape, R_links, origins, centres, radii, extents, floors,
           planes, plane_start, reach, keep):
     """:meth:`ConvexElements.rows`, compiled: (element (K,), foot (K, 3), normal (K, 3), depth
-    (K,)). An element's points are tried nearest to its centre first (likely the deepest), so
-    that the points shallower than ``keep`` rows found are soon skipped."""
+    (K,), point (K,)). An element's points are tried nearest to its centre first (likely the
+    deepest), so that the points shallower than ``keep`` rows found are soon skipped."""
     capacity = 256
     element, foot = np.empty(capacity, np.int64), np.empty((capacity, 3))
     normal, depth = np.empty((capacity, 3)), np.empty(capacity)
@@ -242,8 +244,9 @@ def _rows(points, order, start, lo, cell, shape, R_links, origins, centres, radi
         # put the element's rows in point order
         by_point = np.argsort(point[first_row:count]) + first_row
         foot[first_row:count], normal[first_row:count] = foot[by_point], normal[by_point]
-        depth[first_row:count] = depth[by_point]
-    return element[:count].copy(), foot[:count].copy(), normal[:count].copy(), depth[:count].copy()
+        depth[first_row:count], point[first_row:count] = depth[by_point], point[by_point]
+    return (element[:count].copy(), foot[:count].copy(), normal[:count].copy(),
+            depth[:count].copy(), point[:count].copy())
 
 
 @njit(cache=True, error_model="numpy", inline="always")
