@@ -19,8 +19,9 @@ Pinocchio's frame Jacobian of its link, gripper frame).
 * Contact rows (least squares, weight ``contact_weight``): contact-surface points ``c_k`` on the
   tangent plane ``(o_k, m_k)`` of their nearest object point, like the fit's point-to-plane rows.
   In ``pull`` mode (the default) every surface is matched afresh in each step (each surface on
-  its own, :func:`isf.correspondence.match`), so pads that touch stay on the object and a pad
-  the repair lifts off is drawn back; ``hold`` keeps the points touching at the start.
+  its own: :func:`isf.correspondence.match_many` with the surfaces as groups), so pads that
+  touch stay on the object and a pad the repair lifts off is drawn back; ``hold`` keeps the
+  points touching at the start.
 * Clearance rows (inequalities), two kinds:
 
   - points sampled on every link's geometry, against the object tangent plane ``(a_i, n_i)``
@@ -33,7 +34,11 @@ Pinocchio's frame Jacobian of its link, gripper frame).
   links that carry one (a fingertip may press into the object a little). Rows are used for
   points within ``activation`` of their floor, the deepest ``max_rows`` per element. One slack
   ``s_e`` per element (weight ``slack_weight``) keeps the QP feasible when a step cannot
-  remove all penetration at once.
+  remove all penetration at once. Only the rows that may be used, or be the deepest, are
+  computed in full: a sample's 6 tangent planes are looked up only when the plane of its
+  nearest dense point (a lower bound of its height) leaves it in doubt
+  (``isf.repair_rows.undecided``), and an object point inside a convex element only while
+  it may be among the element's ``max_rows`` deepest.
 * Joint limits are hard bounds on ``q + dq``; every step is also held in a trust region.
 
 A step that overshoots (the deepest row ends above its floor although it was violated before,
@@ -42,6 +47,8 @@ brings that row to zero, when the shorter step is within ``tolerance``.
 The best state visited is returned: least penetration first, then the smallest contact residual.
 Units inside the QP are millimetres. Each QP is small and dense (tens of variables, a hundred or so
 rows) and is solved exactly by :func:`isf.dense_qp.solve_dense_qp`, with OSQP as the fallback.
+The gripper samples, convex elements and the dense object surface are prepared once and cached
+(``isf.repair_geometry``), so a repairer is cheap to build again for the same gripper and mesh.
 """
 
 from __future__ import annotations
@@ -54,20 +61,19 @@ from typing import NamedTuple
 import numpy as np
 import osqp
 import scipy.sparse as sp
-import trimesh
 
 from .collision import Plane
-from .collision_surface import closed_mesh
 from .config import FitConfig
-from .convex_elements import ConvexElements
-from .correspondence import match
+from .correspondence import match_many
 from .dense_qp import solve_dense_qp
 from .exceptions import ConfigError, GripperDescriptionError
 from .gripper import Gripper
 from .lockstep import score_fit
-from .nearest import NearestPoints
 from .object_surface import ObjectSurface
+from .repair_geometry import gripper_side, object_side
+from .repair_rows import deepest_rows, undecided
 from .result import FitResult
+from .segments import Segments
 from .se3 import cross, exp_so3
 
 __all__ = ["ClearanceRepair", "RepairConfig", "RepairResult", "repair_penetration"]
@@ -75,10 +81,9 @@ __all__ = ["ClearanceRepair", "RepairConfig", "RepairResult", "repair_penetratio
 logger = logging.getLogger(__name__)
 
 _MM = 1000.0  # QP length unit: millimetres per metre
-_NEIGHBOURS = 6  # tangent planes tried per gripper point (as in isf.collision)
 _CONVEX_REACH = 0.003  # object points this close to a convex element (beyond its floor) get rows, m
 _OUTLIER_FACTOR = 3.0  # pull mode: pairs farther than this times the median distance are dropped
-_MAX_OBJECT_SAMPLES = 40000  # dense resampling of a mesh object
+_BOUND_SLACK = 1e-12  # rounding allowance on the bounds of a sample's violation, m
 _NO_CONTACT = (np.empty((0, 3)), np.empty((0, 3)), np.empty((0, 3)), np.empty(0, dtype=int))
 
 
@@ -186,6 +191,10 @@ class _Rows(NamedTuple):
     element: np.ndarray
 
 
+_NO_ROWS = _Rows(np.empty(0, dtype=int), np.empty((0, 3)), np.empty((0, 3)), np.empty(0),
+                 np.empty(0, dtype=int))
+
+
 class ClearanceRepair:
     """Repairs penetrating grasps of one gripper on one object (set up once, then cheap).
 
@@ -208,33 +217,28 @@ class ClearanceRepair:
                 "elements"])
         self.gripper, self.object, self.obstacles = gripper, obj, tuple(obstacles)
         self.config = cfg = RepairConfig() if config is None else config
-        rng = np.random.default_rng(0)
-        self._surface_points, self._surface_normals = _dense_surface(obj, cfg.object_spacing, rng)
-        self._tree = NearestPoints(self._surface_points)  # k nearest
-        model = gripper.model
-        links = list(dict.fromkeys(g.link for g in gripper.geometries))
-        link_of = np.array([links.index(g.link) for g in gripper.geometries], dtype=int)
-        self._frames = np.array([model.getFrameId(link) for link in links], dtype=int)
-        self._contact_frames = np.array([model.getFrameId(link) for link in gripper.contact_links],
-                                        dtype=int)
-        contact_links = set(gripper.contact_links)
-        floor = np.array([-cfg.contact_allowance if link in contact_links else cfg.margin
-                          for link in links])
-        # surface samples of every element, in their link frames
-        samples = [_surface_samples(g.vertices, g.faces, cfg.sample_spacing, cfg.max_samples, rng)
-                   for g in gripper.geometries]
-        self._points_link = np.concatenate(samples)
-        self._element = np.repeat(np.arange(len(samples)), [len(s) for s in samples])
-        self._owner = link_of[self._element]
-        self._floor = floor[self._owner]
-        # bounding spheres of the elements (to skip the ones far from the object)
-        vertices = [np.asarray(g.vertices, float) for g in gripper.geometries]
-        self._sphere_owner = link_of
-        self._sphere_centre = np.array([v.mean(axis=0) for v in vertices])
-        self._sphere_radius = np.array([np.linalg.norm(v - c, axis=1).max()
-                                        for v, c in zip(vertices, self._sphere_centre)])
-        self._convex = ConvexElements([(g.vertices, g.faces) for g in gripper.geometries], link_of,
-                                      floor[link_of])
+        rng = np.random.default_rng(0)  # the object's resampling, then the gripper's samples
+        self._planes, self._grid, self._resampled = object_side(obj, cfg.object_spacing, rng)
+        (self._frames, self._points_link, self._element, self._owner, self._floor,
+         self._sphere_owner, self._sphere_centre, self._sphere_radius, self._convex) = gripper_side(
+            gripper, cfg.sample_spacing, cfg.max_samples, cfg.margin, cfg.contact_allowance, rng)
+        self._contact_frames = np.array([gripper.model.getFrameId(link)
+                                         for link in gripper.contact_links], dtype=int)
+        self._surfaces = Segments(gripper.point_surface)  # contact points grouped by surface
+        # Millimetre units in the QP: x_mm = x * scale (v in mm, w in rad, revolute dq in rad,
+        # prismatic in mm); a row a (metres of height per SI unit of x) becomes a * unit (mm
+        # per unit of x_mm).
+        revolute = gripper.revolute
+        self._scale = np.concatenate([np.full(3, _MM), np.ones(3), np.where(revolute, 1.0, _MM)])
+        self._unit = _MM / self._scale
+        lever_mm2 = (cfg.lever * _MM) ** 2
+        self._regularisation = 2.0 * np.diag(np.concatenate([
+            np.full(3, 1.0), np.full(3, lever_mm2), np.where(revolute, lever_mm2, 1.0)])
+            * cfg.regularisation)
+        self._step = np.concatenate([  # trust region of x_mm
+            np.full(3, 0.0 if cfg.lock_palm else cfg.max_translation_step * _MM),
+            np.full(3, 0.0 if cfg.lock_palm else cfg.max_rotation_step),
+            np.where(revolute, cfg.max_joint_step, cfg.max_translation_step * _MM)])
 
     # ------------------------------------------------------------ kinematics
     def _frame_jacobians(self, q: np.ndarray, frames: np.ndarray):
@@ -257,25 +261,66 @@ class ClearanceRepair:
         return world, rows
 
     # ------------------------------------------------------------ object side
-    def _bounding_planes(self, world: np.ndarray):
-        """Signed height (M,) of points above the object, and the object plane (points, normals,
-        each (M, 3)) that bounds each. Points far from the surface (beyond ``activation`` plus
-        twice the object's spacing) and above its tangent plane get that plane only."""
-        obj = self.object
+    def _sample_rows(self, world: np.ndarray, floor: np.ndarray, element: np.ndarray,
+                     known: _Rows) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Clearance rows of gripper samples against the object's tangent planes.
+
+        A sample's height above the object is that of the tangent plane (of the 6 nearest
+        dense object points) that bounds it best; a sample far from the surface (beyond
+        ``activation`` plus twice the object's spacing) and above the tangent plane of its
+        nearest object point gets that plane. Samples whose row is certainly neither among
+        the rows a step uses nor the deepest row (see :func:`isf.repair_rows.undecided`;
+        ``known`` holds the other rows of the state) are left out: the plane of their nearest
+        dense point bounds their height from below, and only the others get their tangent
+        planes.
+
+        Args:
+            world: the samples, object frame, (M, 3).
+            floor, element: their floors (M,), metres, and geometry elements (M,).
+            known: the state's other clearance rows.
+
+        Returns:
+            (indices (K,) of the samples kept, their plane normals (K, 3), their violations
+            ``floor - height`` (K,), metres).
+        """
+        obj, cfg = self.object, self.config
         dist, nearest = obj.nearest(world)
-        planes_o, planes_n = obj.points[nearest].copy(), obj.normals[nearest].copy()
-        heights = np.einsum("mi,mi->m", world - planes_o, planes_n)
-        reach = self.config.activation + self.config.margin + 2.0 * obj.spacing
+        normals = obj.normals[nearest]
+        heights = np.einsum("mi,mi->m", world - obj.points[nearest], normals)
+        violation = floor - heights
+        reach = cfg.activation + cfg.margin + 2.0 * obj.spacing
         close = np.flatnonzero((heights < 0.0) | (dist < reach))
-        if len(close):
-            points, normals = self._surface_points, self._surface_normals
-            k = min(_NEIGHBOURS, len(points))
-            _, idx = self._tree.query_k(world[close], k)
-            h = np.einsum("mki,mki->mk", world[close, None, :] - points[idx], normals[idx])
-            best = idx[np.arange(len(close)), h.argmax(axis=1)]
-            heights[close] = h.max(axis=1)
-            planes_o[close], planes_n[close] = points[best], normals[best]
-        return heights, planes_o, planes_n
+        if not len(close):
+            return np.arange(len(world)), normals, violation
+        planes = self._planes
+        if self._resampled:  # the plane of the nearest dense point, one of the 6
+            _, first = planes.tree.query(world[close])
+            lower = np.einsum("mi,mi->m", world[close] - planes.points[first],
+                              planes.normals[first])
+        else:  # the object's own points: its nearest point is the nearest dense one
+            lower = heights[close]
+        bound = np.full(len(world), np.inf)
+        bound[close] = floor[close] - lower  # the close samples' violations are at most this
+        exact = np.ones(len(world), dtype=bool)
+        exact[close] = False
+        n_elements, max_rows = len(self.gripper.geometries), cfg.max_rows
+        # first the samples most likely to be kept (by their bound), then those still in doubt
+        for most_likely in (True, False):
+            candidates = np.flatnonzero(~exact)
+            todo = undecided(bound[candidates], element[candidates],
+                             np.concatenate([violation[exact], known.violation]),
+                             np.concatenate([element[exact], known.element]), n_elements,
+                             cfg.activation, max_rows, _BOUND_SLACK)
+            candidates = candidates[todo]
+            if most_likely:
+                candidates = candidates[deepest_rows(bound[candidates], element[candidates],
+                                                     n_elements, np.inf, max_rows)]
+                candidates.sort()
+            h, n = planes.evaluate(world[candidates])[:2]
+            violation[candidates], normals[candidates] = floor[candidates] - h, n
+            exact[candidates] = True
+        keep = np.flatnonzero(exact)
+        return keep, normals[keep], violation[keep]
 
     def penetration(self, T_object_gripper: np.ndarray, q: np.ndarray) -> float:
         """Deepest violation of the clearance rows at a state, metres (0 when none).
@@ -351,8 +396,8 @@ class ClearanceRepair:
             last = residual
             active = self._active_rows(rows.violation, rows.element)
             owner, local = rows.owner[active], rows.local[active]
-            world = _to_object(T, R, p, owner, local)
-            centre = contact[0].mean(axis=0) if len(contact[0]) else world.mean(axis=0)
+            centre = contact[0].mean(axis=0) if len(contact[0]) else \
+                _to_object(T, R, p, owner, local).mean(axis=0)
             c_rows = self._contact_jacobian_rows(T, q, contact, centre)
             _, a_rows = self._points_and_rows(local, owner, R, p, J, T, centre, rows.normal[active])
             x = self._solve(c_rows, contact, a_rows, rows.violation[active], rows.element[active],
@@ -363,7 +408,7 @@ class ClearanceRepair:
             T, q = self._apply(T, q, x, centre)
         return RepairResult(best[1], best[2], float(before or 0.0), float(best[3]), steps)
 
-    def _near_elements(self, T: np.ndarray, R: np.ndarray, p: np.ndarray) -> np.ndarray:
+    def _near_samples(self, T: np.ndarray, R: np.ndarray, p: np.ndarray) -> np.ndarray:
         """Indices of the gripper samples of elements that may be within ``activation`` of the
         object (their bounding sphere is close to it, or their centre lies inside it)."""
         obj, owner = self.object, self._sphere_owner
@@ -372,36 +417,39 @@ class ClearanceRepair:
         inside = np.einsum("ei,ei->e", centres - obj.points[idx], obj.normals[idx]) < 0.0
         reach = self._sphere_radius + self.config.activation + self.config.margin \
             + 2.0 * obj.spacing
-        near = np.flatnonzero(inside | (dist < reach))
-        return np.flatnonzero(np.isin(self._element, near))
+        return np.flatnonzero((inside | (dist < reach))[self._element])
 
     def _violations(self, T: np.ndarray, R: np.ndarray, p: np.ndarray) -> _Rows:
-        """Every clearance row candidate at a state (link poses ``R``, ``p`` in the gripper frame).
+        """The clearance row candidates at a state (link poses ``R``, ``p`` in the gripper frame)
+        that a step may use or that may be the most violated one.
 
         Gripper surface samples below the object's tangent planes, object points inside a
         convex gripper element (pushed out through the element's nearest face), and gripper
         samples below an obstacle plane.
         """
-        sel = self._near_elements(T, R, p)
-        owner, local = self._owner[sel], self._points_link[sel]
-        world = _to_object(T, R, p, owner, local)
-        heights, _, planes_n = self._bounding_planes(world)
-        parts = [_Rows(owner, local, planes_n, self._floor[sel] - heights, self._element[sel])]
+        known = []
         if self._convex:
-            parts += self._convex_rows(T, R, p)
+            known += self._convex_rows(T, R, p)
         if self.obstacles:  # every sample of every element stays above each plane
             owner, local = self._owner, self._points_link
             world = _to_object(T, R, p, owner, local)
             for plane in self.obstacles:
-                parts.append(_Rows(owner, local, np.broadcast_to(plane.normal, local.shape),
+                known.append(_Rows(owner, local, np.broadcast_to(plane.normal, local.shape),
                                    self.config.margin - plane.height(world), self._element))
-        return _Rows(*(np.concatenate(v) for v in zip(*parts)))
+        known = _Rows(*(np.concatenate(v) for v in zip(*known))) if known else _NO_ROWS
+        sel = self._near_samples(T, R, p)
+        owner, local, element = self._owner[sel], self._points_link[sel], self._element[sel]
+        world = _to_object(T, R, p, owner, local)
+        keep, normals, violation = self._sample_rows(world, self._floor[sel], element, known)
+        samples = _Rows(owner[keep], local[keep], normals, violation, element[keep])
+        return _Rows(*(np.concatenate(v) for v in zip(samples, known)))
 
     def _convex_rows(self, T: np.ndarray, R: np.ndarray, p: np.ndarray) -> list[_Rows]:
         """Rows of the object points inside (or within reach of) each convex element, pushed out
         through the element's nearest face (:mod:`isf.convex_elements`)."""
         convex = self._convex
-        rows = convex.rows(T, R, p, self._surface_points, _CONVEX_REACH + self.config.margin)
+        rows = convex.rows(T, R, p, self._grid, _CONVEX_REACH + self.config.margin,
+                           self.config.max_rows)
         return [_Rows(convex.owner[rows.element], rows.foot, rows.normal,
                       convex.floor[rows.element] - rows.depth, convex.element[rows.element])]
 
@@ -409,14 +457,8 @@ class ClearanceRepair:
         """Rows to use: within ``activation`` of their floor, at most ``max_rows`` per element (the
         most violating ones)."""
         cfg = self.config
-        near = np.flatnonzero(violation > -cfg.activation)
-        if not len(near):
-            return near
-        order = near[np.lexsort((-violation[near], element[near]))]
-        element = element[order]
-        first = np.r_[0, np.flatnonzero(np.diff(element)) + 1]
-        rank = np.arange(len(order)) - np.repeat(first, np.diff(np.r_[first, len(order)]))
-        return order[rank < cfg.max_rows]
+        return deepest_rows(violation, element, len(self.gripper.geometries), cfg.activation,
+                            cfg.max_rows)
 
     def _contact_rows(self, T: np.ndarray, q: np.ndarray, held: np.ndarray | None = None,
                       pull: bool = False):
@@ -426,9 +468,9 @@ class ClearanceRepair:
             T, q: the state.
             held: indices of the contact points to hold; None selects them.
             pull: select every contact point that matches the object like a fit's pairs
-                (:func:`isf.correspondence.match`, surface by surface, with ``contact_reach`` as
-                the outlier floor); else those within ``contact_reach`` whose normals face the
-                object normal.
+                (:func:`isf.correspondence.match_many`, each surface a group, with
+                ``contact_reach`` as the outlier floor); else those within ``contact_reach``
+                whose normals face the object normal.
 
         Returns:
             (object-frame points (K, 3), plane points (K, 3), plane normals (K, 3), indices (K,)).
@@ -438,15 +480,10 @@ class ClearanceRepair:
         points = points @ T[:3, :3].T + T[:3, 3]
         normals = normals @ T[:3, :3].T
         if pull and held is None:  # each surface on its own: a pad that lost contact is drawn back
-            source, target = [], []
-            for k in range(len(g.surfaces)):
-                mine = np.flatnonzero(g.point_surface == k)
-                pairs = match(obj, points[mine], outlier_factor=_OUTLIER_FACTOR,
-                              outlier_floor=cfg.contact_reach, reject_duplicates=True,
-                              normals=normals[mine], max_normal_angle=cfg.max_normal_angle)
-                source.append(mine[pairs.source])
-                target.append(pairs.target)
-            source, target = np.concatenate(source), np.concatenate(target)
+            pairs = match_many(obj, points, self._surfaces, outlier_factor=_OUTLIER_FACTOR,
+                               outlier_floor=cfg.contact_reach, reject_duplicates=True,
+                               normals=normals, max_normal_angle=cfg.max_normal_angle)
+            source, target = pairs.source, pairs.target
             return points[source], obj.points[target], obj.normals[target], source
         dist, idx = obj.nearest(points)
         if held is None:
@@ -471,14 +508,10 @@ class ClearanceRepair:
         Returns:
             (H, f, A, lo, hi, scale): ``x_mm = x * scale`` (millimetre units), ``s`` the slacks.
         """
-        cfg, g = self.config, self.gripper
-        n = g.n_joints
-        nx = 6 + n
+        cfg = self.config
+        nx = len(self._scale)
         m = len(a_rows)
-        # Millimetre units: x_mm = x * scale (v in mm, w in rad, revolute dq in rad, prismatic in
-        # mm); a row a (metres of height per SI unit of x) becomes a * unit (mm per unit of x_mm).
-        scale = np.r_[np.full(3, _MM), np.ones(3), np.where(g.revolute, 1.0, _MM)]
-        unit = _MM / scale
+        unit = self._unit
         points, plane_o, plane_n, _ = contact
         k = len(points)
         P = np.zeros((nx, nx))
@@ -488,30 +521,25 @@ class ClearanceRepair:
             res = _MM * np.einsum("ij,ij->i", points - plane_o, plane_n)
             P += 2.0 * cfg.contact_weight * B.T @ B
             qv += 2.0 * cfg.contact_weight * B.T @ res
-        lever_mm = cfg.lever * _MM
-        reg = np.r_[np.full(3, 1.0), np.full(3, lever_mm**2),
-                    np.where(g.revolute, lever_mm**2, 1.0)] * cfg.regularisation
-        P += 2.0 * np.diag(reg)
+        P += self._regularisation
         # one slack per geometry element: n^T A x + s_e >= violation, s_e >= 0
         elements, which = np.unique(element, return_inverse=True)
         ns = len(elements)
         H = np.zeros((nx + ns, nx + ns))
         H[:nx, :nx] = P
         H[nx:, nx:] = 2.0 * cfg.slack_weight * np.eye(ns)
-        f = np.r_[qv, np.zeros(ns)]
+        f = np.concatenate([qv, np.zeros(ns)])
         A = np.zeros((m + ns + nx, nx + ns))
         A[:m, :nx] = a_rows * unit
         A[np.arange(m), nx + which] = 1.0
-        A[m:, :] = np.eye(nx + ns)[np.r_[nx:nx + ns, 0:nx]]
-        step = np.r_[np.full(3, cfg.max_translation_step * _MM), np.full(3, cfg.max_rotation_step),
-                     np.where(g.revolute, cfg.max_joint_step, cfg.max_translation_step * _MM)]
-        if cfg.lock_palm:
-            step[:6] = 0.0
-        lo = np.r_[-step[:6], np.minimum(0.0, np.maximum(-step[6:], (g.lower - q) * scale[6:]))]
-        hi = np.r_[step[:6], np.maximum(0.0, np.minimum(step[6:], (g.upper - q) * scale[6:]))]
-        lower = np.r_[violation * _MM, np.zeros(ns), lo]
-        upper = np.r_[np.full(m, np.inf), np.full(ns, np.inf), hi]
-        return H, f, A, lower, upper, scale
+        A[np.arange(m, m + ns + nx), np.r_[nx:nx + ns, 0:nx]] = 1.0
+        step, joints = self._step, self._scale[6:]
+        g = self.gripper
+        lo = np.minimum(0.0, np.maximum(-step[6:], (g.lower - q) * joints))
+        hi = np.maximum(0.0, np.minimum(step[6:], (g.upper - q) * joints))
+        lower = np.concatenate([violation * _MM, np.zeros(ns), -step[:6], lo])
+        upper = np.concatenate([np.full(m + ns, np.inf), step[:6], hi])
+        return H, f, A, lower, upper, self._scale
 
     def _solve(self, c_rows, contact, a_rows, violation, element, q) -> np.ndarray | None:
         """One QP step ``x = (v, w, dq)`` in SI units, or None when no solver finds one.
@@ -552,31 +580,6 @@ def _to_object(T: np.ndarray, R: np.ndarray, p: np.ndarray, owner: np.ndarray,
     rotation = T[:3, :3] @ R  # the links' rotations in the object frame
     origin = p @ np.ascontiguousarray(T[:3, :3].T) + T[:3, 3]
     return np.einsum("mij,mj->mi", rotation[owner], local) + origin[owner]
-
-
-def _dense_surface(obj: ObjectSurface, spacing: float, rng: np.random.Generator):
-    """The object's points and normals, plus area-uniform samples of its mesh at ``spacing`` when
-    it is a closed, outward mesh (a point cloud or an open mesh gives its own points only)."""
-    mesh = None if spacing >= obj.spacing else closed_mesh(obj)
-    if mesh is None:
-        return obj.points, obj.normals
-    count = int(np.clip(mesh.area / spacing**2, 1, _MAX_OBJECT_SAMPLES))
-    points, face = trimesh.sample.sample_surface(mesh, count, seed=int(rng.integers(2**31)))
-    normals = mesh.face_normals[face]
-    return np.concatenate([obj.points, points]), np.concatenate([obj.normals, normals])
-
-
-def _surface_samples(vertices, faces, spacing, max_points, rng) -> np.ndarray:
-    """About one point per ``spacing^2`` of area (at most ``max_points``) plus the vertices of a
-    mesh with at most ``max_points`` of them (box corners), (M, 3)."""
-    mesh = trimesh.Trimesh(np.asarray(vertices, float), np.asarray(faces, np.int64), process=False,
-                           validate=False)
-    if mesh.area <= 0.0:
-        return np.asarray(vertices, float)
-    count = int(np.clip(mesh.area / spacing**2, 1, max_points))
-    samples, _ = trimesh.sample.sample_surface(mesh, count, seed=int(rng.integers(2**31)))
-    corners = mesh.vertices if len(mesh.vertices) <= max_points else np.empty((0, 3))
-    return np.concatenate([samples, corners])
 
 
 def _solve_osqp(H, f, A, lower, upper) -> np.ndarray | None:

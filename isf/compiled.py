@@ -32,6 +32,8 @@ from .fit import fit_many
 from .gripper import ContactSurface, Gripper, LinkGeometry
 from .nearest import NearestPoints
 from .object_surface import ObjectSurface
+from .point_grid import PointGrid
+from .repair_rows import deepest_rows, undecided
 
 __all__ = ["warm_up"]
 
@@ -78,8 +80,9 @@ def warm_up() -> float:
     It fits a one-joint gripper onto a small plane (the engine's own calls, so its own
     argument types), once more with IPFO pausing for Python (as it does for OSQP finger steps
     and for joints without compiled kinematics), asks for nearest points as the repair does,
-    runs the repair's convex-element test and a small repair QP, the voxel tests, and
-    collision checks of a convex and a non-convex element against a mesh, apart and pressed in.
+    runs the repair's convex-element test, row selection and a small repair QP, the voxel
+    tests, and collision checks of a convex and a non-convex element against a mesh, apart and
+    pressed in.
     """
     start = time.perf_counter()
     grid = np.stack(np.meshgrid(*[np.linspace(-0.02, 0.02, 41)] * 2), axis=-1).reshape(-1, 2)
@@ -97,8 +100,11 @@ def warm_up() -> float:
           reject_duplicates=True)
     box = trimesh.creation.box(extents=(0.01, 0.01, 0.01))
     ConvexElements([(box.vertices, box.faces)], np.zeros(1), np.zeros(1)).rows(
-        np.eye(4), np.eye(3)[None], np.zeros((1, 3)), plane.points, 0.003)
+        np.eye(4), np.eye(3)[None], np.zeros((1, 3)), PointGrid(plane.points, 0.004), 0.003, 12)
     solve_dense_qp(np.eye(2), np.ones(2), np.ones((1, 2)), np.zeros(1), np.ones(1))
+    one, element = np.zeros(1), np.zeros(1, dtype=np.int64)  # the repair's row selection
+    deepest_rows(one, element, 1, 0.008, 12)
+    undecided(one, element, one, element, 1, 0.008, 12, 1e-12)
     voxels = SurfaceVoxels(box.vertices, box.faces)  # the collision checks' voxels
     voxels.clear(box.vertices, box.vertices), voxels.distance_below(box.vertices)
     _check_collisions()

@@ -5,8 +5,9 @@ edge can poke into a link between its samples. For a closed convex element the t
 exact: a point lies inside when it is below every face plane ``n . x <= d``. The repair
 pushes such points (and those within a reach of the element) out through the element's
 nearest face. :meth:`ConvexElements.rows` finds them for all elements at once, in compiled
-code: the object points within each element's bounding sphere, a coarse test against a few
-spread-out faces, then all faces.
+code: the object points within each element's bounding sphere (found through a
+:class:`isf.point_grid.PointGrid`), then its faces in spread-out order, up to the first that
+leaves the point out.
 """
 
 from __future__ import annotations
@@ -16,6 +17,9 @@ from typing import NamedTuple
 import numpy as np
 import trimesh
 from numba import njit
+from scipy.spatial import HalfspaceIntersection, QhullError
+
+from .point_grid import PointGrid, ball_candidates
 
 __all__ = ["ConvexElements", "ConvexRows"]
 
@@ -23,9 +27,6 @@ MAX_PLANES = 128
 """Face planes kept per element (spread-out normals): a subset of a convex element's face
 planes bounds a slightly larger polytope, which errs on the safe side and keeps a finely
 tessellated sphere cheap (1280 faces -> 128 planes: ~0.2 mm larger at 12 mm)."""
-
-COARSE_PLANES = 16
-"""Of them, the first (most spread-out) ones, tried before all."""
 
 
 class ConvexRows(NamedTuple):
@@ -37,37 +38,71 @@ class ConvexRows(NamedTuple):
         normal: that face's inward normal in the object frame (the direction the element must
             move for the point to leave it), (K, 3).
         depth: signed distance of the point above that face plane (negative inside), (K,), m.
+        point: index of the object point, (K,).
     """
 
     element: np.ndarray
     foot: np.ndarray
     normal: np.ndarray
     depth: np.ndarray
+    point: np.ndarray
 
 
-def _spread(directions: np.ndarray, count: int) -> np.ndarray:
-    """Indices of at most ``count`` rows of ``directions`` (N, 3) in farthest-point order."""
-    if len(directions) <= count:
-        return np.arange(len(directions))
-    chosen = [0]
-    gap = np.linalg.norm(directions - directions[0], axis=1)
-    for _ in range(count - 1):
-        k = int(gap.argmax())
-        chosen.append(k)
-        gap = np.minimum(gap, np.linalg.norm(directions - directions[k], axis=1))
-    return np.array(chosen)
+@njit(cache=True, error_model="numpy")
+def _spread(directions, count):
+    """Indices (at most ``count``) of rows of ``directions`` (N, 3) in farthest-point order."""
+    n = len(directions)
+    if n <= count:
+        return np.arange(n)
+    chosen = np.empty(count, np.int64)
+    chosen[0] = 0
+    gap = np.empty(n)
+    for i in range(n):
+        gap[i] = _distance(directions, i, 0)
+    for c in range(1, count):
+        k = np.argmax(gap)
+        chosen[c] = k
+        for i in range(n):
+            gap[i] = min(gap[i], _distance(directions, i, k))
+    return chosen
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _distance(points, i, j):
+    """Distance between rows ``i`` and ``j`` of ``points`` (N, 3)."""
+    return np.sqrt((points[i, 0] - points[j, 0]) ** 2 + (points[i, 1] - points[j, 1]) ** 2
+                   + (points[i, 2] - points[j, 2]) ** 2)
 
 
 def _face_planes(vertices: np.ndarray, faces: np.ndarray):
-    """Outward face planes ``(n, d)`` (P, 4) (spread-out order), centre (3,) and radius of a
-    closed convex mesh, or None when the mesh is not one."""
+    """Outward face planes ``(n, d)`` (P, 4) (spread-out order), centre (3,), radius and extent
+    (see :func:`_extent`) of a closed convex mesh, or None when the mesh is not one."""
     mesh = trimesh.Trimesh(np.asarray(vertices, float), np.asarray(faces, np.int64))
-    if not (len(mesh.faces) and mesh.is_watertight and mesh.is_winding_consistent and mesh.is_convex):
+    if not (len(mesh.faces) and mesh.is_watertight and mesh.is_winding_consistent and
+            mesh.is_convex):
         return None
     n = np.sign(mesh.volume) * mesh.face_normals
-    planes = np.c_[n, np.einsum("ij,ij->i", n, mesh.triangles[:, 0])][_spread(n, MAX_PLANES)]
+    kept = _spread(n, MAX_PLANES)
+    planes = np.c_[n, np.einsum("ij,ij->i", n, mesh.triangles[:, 0])][kept]
     centre = mesh.vertices.mean(axis=0)
-    return planes, centre, float(np.linalg.norm(mesh.vertices - centre, axis=1).max())
+    radius = float(np.linalg.norm(mesh.vertices - centre, axis=1).max())
+    return planes, centre, radius, _extent(planes, centre, radius, len(kept) < len(n))
+
+
+def _extent(planes: np.ndarray, centre: np.ndarray, radius: float, dropped: bool) -> float:
+    """Largest distance from ``centre`` (3,), an inner point, of the polytope ``n . x <= d`` of
+    ``planes`` (P, 4), padded for rounding: the element's ``radius`` when no face plane was
+    ``dropped``, else from the polytope's corners (inf when it is unbounded or qhull fails)."""
+    if dropped:
+        try:
+            halfspaces = np.c_[planes[:, :3], -planes[:, 3]]
+            corners = HalfspaceIntersection(halfspaces, centre).intersections
+        except QhullError:
+            return np.inf
+        if not np.all(np.isfinite(corners)):
+            return np.inf
+        radius = float(np.linalg.norm(corners - centre, axis=1).max())
+    return radius * (1.0 + 1e-9) + 1e-12
 
 
 class ConvexElements:
@@ -85,8 +120,13 @@ class ConvexElements:
     """
 
     def __init__(self, geometries, owner: np.ndarray, floor: np.ndarray):
-        found = [(e, f) for e, (v, faces) in enumerate(geometries)
-                 if (f := _face_planes(v, faces)) is not None]
+        of_mesh, found = {}, []  # grippers repeat meshes (fingers): each is examined once
+        for e, (v, faces) in enumerate(geometries):
+            key = (np.asarray(v, float).tobytes(), np.asarray(faces, np.int64).tobytes())
+            if key not in of_mesh:
+                of_mesh[key] = _face_planes(v, faces)
+            if of_mesh[key] is not None:
+                found.append((e, of_mesh[key]))
         self.element = np.array([e for e, _ in found], dtype=np.int64)
         self.owner = np.asarray(owner, dtype=np.int64)[self.element]
         self.floor = np.asarray(floor, dtype=float)[self.element]
@@ -95,70 +135,135 @@ class ConvexElements:
         self._planes = np.concatenate([f[0] for _, f in found]) if found else np.zeros((0, 4))
         self._centre = np.array([f[1] for _, f in found]).reshape(-1, 3)
         self._radius = np.array([f[2] for _, f in found])
+        # of the polytope of the kept planes (larger than the element when planes were dropped)
+        self._extent = np.array([f[3] for _, f in found])
 
     def __len__(self) -> int:
         return len(self.element)
 
-    def rows(self, T: np.ndarray, R: np.ndarray, p: np.ndarray, points: np.ndarray,
-             reach: float) -> ConvexRows:
-        """The object ``points`` (N, 3) inside, or within ``reach`` (m) beyond the floor of, each
+    def rows(self, T: np.ndarray, R: np.ndarray, p: np.ndarray, grid: PointGrid, reach: float,
+             keep: int) -> ConvexRows:
+        """The object points of ``grid`` inside, or within ``reach`` (m) beyond the floor of, each
         element, with the gripper at palm pose ``T`` (4, 4) and link poses ``R`` (L, 3, 3), ``p``
-        (L, 3) (gripper frame). Rows come element by element, points in index order."""
+        (L, 3) (gripper frame); of an element's points, only those that may be among its
+        ``keep`` deepest (a point left out has ``keep`` rows of its element with larger
+        violations ``floor - depth``). Rows come element by element, points in index order."""
         R_links = T[:3, :3] @ R[self.owner]  # element (link) rotations in the object frame
         origins = p[self.owner] @ T[:3, :3].T + T[:3, 3]
-        return ConvexRows(*_rows(np.ascontiguousarray(points, dtype=float), R_links, origins,
-                                 self._centre, self._radius, self.floor, self._planes,
-                                 self._plane_start, COARSE_PLANES, float(reach)))
+        return ConvexRows(*_rows(grid.points, *grid.arrays, R_links, origins, self._centre,
+                                 self._radius, self._extent, self.floor, self._planes,
+                                 self._plane_start, float(reach), int(keep)))
 
 
 @njit(cache=True, error_model="numpy")
-def _rows(points, R_links, origins, centres, radii, floors, planes, plane_start, n_coarse, reach):
-    """:meth:`ConvexElements.rows`, compiled: (element (K,), foot (K, 3), normal (K, 3), depth (K,))."""
+def _rows(points, order, start, lo, cell, shape, R_links, origins, centres, radii, extents, floors,
+          planes, plane_start, reach, keep):
+    """:meth:`ConvexElements.rows`, compiled: (element (K,), foot (K, 3), normal (K, 3), depth
+    (K,), point (K,)). An element's points are tried nearest to its centre first (likely the
+    deepest), so that the points shallower than ``keep`` rows found are soon skipped."""
     capacity = 256
     element, foot = np.empty(capacity, np.int64), np.empty((capacity, 3))
     normal, depth = np.empty((capacity, 3)), np.empty(capacity)
     count = 0
     local = np.empty(3)
+    near = np.empty(len(points), np.int64)
+    rho = np.empty(len(points))  # distance of each point in the ball from the element's centre
+    point = np.empty(capacity, np.int64)  # the object point of each row
+    deepest = np.empty(keep)  # violations (floor - depth) of an element's deepest rows, descending
+    central = np.empty(keep, np.int64)  # the points in the ball nearest to the centre
     for c in range(len(radii)):
+        first_row = count
+        deepest[:] = -np.inf
         R, o = R_links[c], origins[c]
         centre = np.empty(3)
         for i in range(3):
-            centre[i] = R[i, 0] * centres[c, 0] + R[i, 1] * centres[c, 1] + R[i, 2] * centres[c, 2] + o[i]
+            centre[i] = (R[i, 0] * centres[c, 0] + R[i, 1] * centres[c, 1]
+                         + R[i, 2] * centres[c, 2] + o[i])
         ball2 = (radii[c] + reach) ** 2
-        limit = floors[c] + reach
-        first, last = plane_start[c], plane_start[c + 1]
-        for k in range(len(points)):
+        hint = plane_start[c]
+        n_ball = 0
+        n_central = 0
+        for k in near[:ball_candidates(centre, radii[c] + reach, order, start, lo, cell, shape,
+                                       near)]:
             d2 = 0.0
             for i in range(3):
                 d2 += (points[k, i] - centre[i]) ** 2
             if d2 > ball2:
                 continue
+            near[n_ball], rho[n_ball] = k, np.sqrt(d2)  # compact: n_ball never passes the scan
+            slot = min(n_central, keep - 1)
+            if n_central < keep or rho[n_ball] < rho[central[slot]]:
+                while slot > 0 and rho[central[slot - 1]] > rho[n_ball]:
+                    central[slot] = central[slot - 1]
+                    slot -= 1
+                central[slot] = n_ball
+                n_central = min(n_central + 1, keep)
+            n_ball += 1
+        for t in range(n_central + n_ball):  # the central points, then the others
+            m = central[t] if t < n_central else t - n_central
+            if rho[m] == np.inf:  # a central point, done
+                continue
+            # a point rho from the centre is at most extent - rho deep: skip it when that
+            # is shallower than `keep` rows already found
+            shallow = floors[c] - min(rho[m] - extents[c], 0.0) < deepest[keep - 1]
+            if t < n_central:
+                rho[m] = np.inf
+            if shallow:
+                continue
+            k = near[m]
             for j in range(3):  # the point in the element's link frame
                 local[j] = ((points[k, 0] - o[0]) * R[0, j] + (points[k, 1] - o[1]) * R[1, j]
                             + (points[k, 2] - o[2]) * R[2, j])
-            best, face = -np.inf, -1
-            outside = False
-            for f in range(first, last):
-                sd = (planes[f, 0] * local[0] + planes[f, 1] * local[1] + planes[f, 2] * local[2]
-                      - planes[f, 3])
-                if sd > best:
-                    best, face = sd, f
-                if f == first + n_coarse - 1 and best >= limit:  # out by a coarse face already
-                    outside = True
-                    break
-            if outside or best >= limit:
+            # the face that left the last point out often leaves this one out too
+            sd = (planes[hint, 0] * local[0] + planes[hint, 1] * local[1]
+                  + planes[hint, 2] * local[2] - planes[hint, 3])
+            if sd >= floors[c] + reach or floors[c] - sd < deepest[keep - 1]:
                 continue
+            best, face = _deepest_face(local, planes, plane_start[c], plane_start[c + 1],
+                                       floors[c] + reach, floors[c], deepest[keep - 1])
+            if face < 0:
+                hint = -1 - face
+                continue
+            violation = floors[c] - best
+            slot = keep - 1
+            while slot > 0 and deepest[slot - 1] < violation:
+                deepest[slot] = deepest[slot - 1]
+                slot -= 1
+            deepest[slot] = violation
             if count == capacity:
                 capacity *= 2
                 element, foot = _grow(element, capacity), _grow(foot, capacity)
                 normal, depth = _grow(normal, capacity), _grow(depth, capacity)
-            element[count], depth[count] = c, best
+                point = _grow(point, capacity)
+            element[count], depth[count], point[count] = c, best, k
             for i in range(3):
                 foot[count, i] = local[i] - best * planes[face, i]
                 normal[count, i] = -(R[i, 0] * planes[face, 0] + R[i, 1] * planes[face, 1]
                                      + R[i, 2] * planes[face, 2])
             count += 1
-    return element[:count].copy(), foot[:count].copy(), normal[:count].copy(), depth[:count].copy()
+        # put the element's rows in point order
+        by_point = np.argsort(point[first_row:count]) + first_row
+        foot[first_row:count], normal[first_row:count] = foot[by_point], normal[by_point]
+        depth[first_row:count], point[first_row:count] = depth[by_point], point[by_point]
+    return (element[:count].copy(), foot[:count].copy(), normal[:count].copy(),
+            depth[:count].copy(), point[:count].copy())
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _deepest_face(local, planes, first, last, limit, floor, cut):
+    """The face plane (rows ``first:last`` of ``planes``) a point ``local`` (3,) lies highest
+    above and that height, ``(height, face)``; or, when the point is out by ``limit`` or more
+    or ``floor - height`` falls below ``cut``, ``(height so far, -1 - the face showing it)``
+    (it stops at that face)."""
+    best, face = -np.inf, -1
+    for f in range(first, last):
+        sd = planes[f, 0] * local[0] + planes[f, 1] * local[1] + planes[f, 2] * local[2] \
+            - planes[f, 3]
+        if sd > best:
+            best, face = sd, f
+            if best >= limit or floor - best < cut:
+                return best, -1 - f
+    return best, face
 
 
 @njit(cache=True)

@@ -1,0 +1,47 @@
+"""isf.point_grid against brute force: every point of a ball is listed, each once."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from isf.point_grid import MAX_CELLS, PointGrid, ball_candidates
+
+
+def _candidates(grid: PointGrid, centre, radius) -> np.ndarray:
+    out = np.empty(len(grid.points), dtype=np.int64)
+    return out[:ball_candidates(np.asarray(centre, float), float(radius), *grid.arrays, out)]
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_ball_candidates_hold_every_point_in_the_ball_once(seed):
+    rng = np.random.default_rng(seed)
+    points = rng.normal(scale=0.03, size=(3000, 3))
+    points[:50] = points[50:100]  # duplicates
+    grid = PointGrid(points, cell=rng.uniform(0.002, 0.01))
+    for _ in range(50):
+        centre = rng.normal(scale=0.05, size=3)
+        radius = rng.uniform(0.0, 0.04)
+        found = _candidates(grid, centre, radius)
+        assert len(np.unique(found)) == len(found)
+        inside = np.flatnonzero(np.linalg.norm(points - centre, axis=1) <= radius)
+        assert set(inside) <= set(found)
+
+
+def test_points_on_cell_faces_and_flat_sets_are_found():
+    # a flat grid of points lying exactly on cell boundaries (z = 0: one cell thick)
+    xy = np.stack(np.meshgrid(*[np.arange(-10, 11) * 0.004] * 2), axis=-1).reshape(-1, 2)
+    points = np.c_[xy, np.zeros(len(xy))]
+    grid = PointGrid(points, cell=0.004)
+    for centre, radius in (((0.0, 0.0, 0.0), 0.004), ((0.004, -0.008, 0.001), 0.0041),
+                           ((0.04, 0.04, 0.0), 0.0), ((0.0, 0.0, 0.05), 0.05)):
+        inside = np.flatnonzero(np.linalg.norm(points - np.array(centre), axis=1) <= radius)
+        assert set(inside) <= set(_candidates(grid, centre, radius))
+    assert len(_candidates(grid, (0.0, 0.0, 0.1), 0.01)) == 0  # a ball far off the set
+
+
+def test_a_widely_spread_set_keeps_the_grid_small():
+    points = np.array([[0.0, 0.0, 0.0], [100.0, 100.0, 100.0], [50.0, 20.0, 70.0]])
+    grid = PointGrid(points, cell=0.001)
+    assert np.prod(grid.arrays[4]) <= 2 * MAX_CELLS
+    assert set(_candidates(grid, points[2], 1e-3)) >= {2}
