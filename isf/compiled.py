@@ -8,7 +8,8 @@ correspondence filters (:mod:`isf.correspondence`), the finger step's active set
 a kernel at its first call and caches the machine code on disk (in the package's
 ``__pycache__`` folders, or in numba's user cache when those are read-only;
 ``NUMBA_CACHE_DIR`` moves it). So the first run after installing or upgrading isf compiles
-them (35-40 s on a 2-core machine), and later runs load them in under a second.
+them (about a minute on a 2-core machine, compiling the engine's and the checks' kernels in
+two processes), and later runs load them in about a second.
 
 :func:`warm_up` compiles (or loads) every kernel on tiny inputs of the types the engine
 passes, so that the cost lands where the caller wants it: ``isf plan`` calls it before
@@ -17,6 +18,9 @@ planning (and says so when it takes a while), the benchmark scripts before timin
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
 import time
 
 import numpy as np
@@ -24,6 +28,7 @@ import pinocchio as pin
 import trimesh
 
 from .collision import CollisionChecker
+from .collision_kernel import check_elements
 from .collision_voxels import SurfaceVoxels
 from .convex_elements import ConvexElements
 from .correspondence import match
@@ -82,9 +87,33 @@ def warm_up() -> float:
     and for joints without compiled kinematics), asks for nearest points as the repair does,
     runs the repair's convex-element test, row selection and a small repair QP, the voxel
     tests, and collision checks of a convex and a non-convex element against a mesh, apart and
-    pressed in.
+    pressed in. When the kernels of the checks and the repair are not compiled yet and the
+    machine has a second core, a second process compiles them (into the same cache) while this
+    one compiles the engine's.
     """
     start = time.perf_counter()
+    helper = None
+    if (os.cpu_count() or 1) > 1 and not _cached(check_elements):
+        helper = subprocess.Popen([sys.executable, "-c", "from isf.compiled import _warm_checks; _warm_checks()"],
+                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    _warm_engine()
+    if helper is not None:
+        helper.wait()  # its kernels load from the cache below (or compile here, had it failed)
+    _warm_checks()
+    return time.perf_counter() - start
+
+
+def _cached(kernel) -> bool:
+    """Whether numba's disk cache holds compiled code of ``kernel`` for this source (False when
+    that cannot be told)."""
+    try:
+        return bool(kernel._cache._cache_file._load_index())
+    except Exception:  # numba internals moved: assume cached, so nothing runs twice
+        return True
+
+
+def _warm_engine() -> None:
+    """The kernels of the ISF engine, with the engine's calls."""
     grid = np.stack(np.meshgrid(*[np.linspace(-0.02, 0.02, 41)] * 2), axis=-1).reshape(-1, 2)
     plane = ObjectSurface(np.c_[grid + [0.05, 0.0], np.zeros(len(grid))],
                           np.tile([0.0, 0.0, 1.0], (len(grid), 1)), spacing=0.001)
@@ -95,12 +124,17 @@ def warm_up() -> float:
     paused._chain = None  # as for joints without compiled kinematics: IPFO pauses for Pinocchio
     fit_many(paused, plane, T[None], np.array([[0.1]]))  # a tilted pad: the joint turns
     plane.nearest(plane.points[:2])  # as the collision repair asks
-    NearestPoints(plane.points).query_k(plane.points[:2], 6)
     match(plane, plane.points[:8] + [0.0, 0.0, 0.001], outlier_factor=3.0, outlier_floor=0.005,
           reject_duplicates=True)
+
+
+def _warm_checks() -> None:
+    """The kernels of the collision checks and the repair."""
+    points = np.random.default_rng(0).uniform(-0.01, 0.01, (50, 3))
+    NearestPoints(points).query_k(points[:2], 6)
     box = trimesh.creation.box(extents=(0.01, 0.01, 0.01))
     ConvexElements([(box.vertices, box.faces)], np.zeros(1), np.zeros(1)).rows(
-        np.eye(4), np.eye(3)[None], np.zeros((1, 3)), PointGrid(plane.points, 0.004), 0.003, 12)
+        np.eye(4), np.eye(3)[None], np.zeros((1, 3)), PointGrid(points, 0.004), 0.003, 12)
     solve_dense_qp(np.eye(2), np.ones(2), np.ones((1, 2)), np.zeros(1), np.ones(1))
     one, element = np.zeros(1), np.zeros(1, dtype=np.int64)  # the repair's row selection
     deepest_rows(one, element, 1, 0.008, 12)
@@ -108,4 +142,3 @@ def warm_up() -> float:
     voxels = SurfaceVoxels(box.vertices, box.faces)  # the collision checks' voxels
     voxels.clear(box.vertices, box.vertices), voxels.distance_below(box.vertices)
     _check_collisions()
-    return time.perf_counter() - start
