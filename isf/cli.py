@@ -156,7 +156,7 @@ def _compile_kernels(quiet: bool) -> None:
 
     notice = threading.Timer(_COMPILE_NOTICE_AFTER, lambda: print(
         "isf: compiling its numerical kernels for this machine (once after installing or "
-        "upgrading isf: under a minute) ...", file=sys.stderr, flush=True))
+        "upgrading isf: about a minute and a half) ...", file=sys.stderr, flush=True))
     if not quiet:
         notice.start()
     try:
