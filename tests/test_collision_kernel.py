@@ -12,16 +12,7 @@ from isf.collision import CollisionChecker
 from isf.collision_elements import Element, point_triangle_distance
 from isf.collision_kernel import reverse_clearance
 from isf.gripper import LinkGeometry
-from test_collision import CUBE, GAP, jaw_gripper, mesh_object, pose
-
-
-def _coal_mesh(vertices, faces) -> coal.BVHModelOBBRSS:
-    model = coal.BVHModelOBBRSS()
-    model.beginModel(len(faces), len(vertices))
-    model.addVertices(np.ascontiguousarray(vertices, dtype=np.float64))
-    model.addTriangles(np.ascontiguousarray(faces, dtype=np.int64))
-    model.endModel()
-    return model
+from test_collision import CUBE, GAP, _coal_bvh, jaw_gripper, mesh_object, pose
 
 
 def _coal_distance(model, point, pose=None) -> float:
@@ -36,7 +27,7 @@ def _coal_distance(model, point, pose=None) -> float:
 def test_point_triangle_distances_match_coal(mesh):
     rng = np.random.default_rng(5)
     points = rng.normal(scale=0.02, size=(200, 3))
-    model = _coal_mesh(mesh.vertices, mesh.faces)
+    model = _coal_bvh(mesh.vertices, mesh.faces)
     exact = np.array([_coal_distance(model, p) for p in points])
     assert np.allclose(point_triangle_distance(points, mesh.triangles), exact, atol=1e-12)
 
@@ -101,7 +92,7 @@ def test_clearance_probes_match_coal_distances():
         M[:3, :3], M[:3, 3] = links.rotations[0, e.frame], links.positions[0, e.frame]
         poses.append(pose(0.03) @ M)
     poses = np.array(poses)
-    models = [_coal_mesh(e.mesh.vertices, e.mesh.faces) for e in checker._elements]
+    models = [_coal_bvh(e.mesh.vertices, e.mesh.faces) for e in checker._elements]
     surface = checker._surface
     for _ in range(5):
         owner = rng.choice([0, 1, 3, 4], size=12)
