@@ -98,7 +98,8 @@ class LockstepFitter:
             self._qps[b].reset()
 
     def step(self) -> list[tuple[Hashable, FitResult]]:
-        """One ISF iteration of every running fit; returns ``(key, result)`` of the fits that ended."""
+        """One ISF iteration of every running fit; returns ``(key, result)`` of the fits that
+        ended."""
         return self._run(1)
 
     def advance(self) -> list[tuple[Hashable, FitResult]]:
@@ -108,7 +109,8 @@ class LockstepFitter:
 
     def _run(self, max_rounds: int | None) -> list[tuple[Hashable, FitResult]]:
         left = np.iinfo(np.int64).max if max_rounds is None else max_rounds
-        args = (self._slots, self._history, self._grip, self._obj, self._fit_params, self._ipfo_params)
+        slots, history, grip, fit_params = self._slots, self._history, self._grip, self._fit_params
+        args = (slots, history, grip, self._obj, fit_params, self._ipfo_params)
         while left > 0:
             reason, rounds, pairs, state, moments, reply = kernel.run(*args, left)
             if reason != kernel.PENDING:
@@ -116,11 +118,12 @@ class LockstepFitter:
             # IPFO of this round needs Python: finish it, then the round
             qps = [self._qp(b) for b in pairs[0].tolist()] if self.gripper.n_joints else None
             answer_requests(self.gripper, qps, state, moments, self._ipfo_params, reply)
-            kernel.finish_round(self._slots, self._history, self._grip, self._fit_params, pairs, state)
+            kernel.finish_round(slots, history, grip, fit_params, pairs, state)
             left -= rounds + 1
-            if np.any(self._slots[6] > kernel.RUNNING):
+            if np.any(slots[6] > kernel.RUNNING):
                 break
-        return [(self._keys[b], self._result(b)) for b in np.flatnonzero(self._slots[6] > kernel.RUNNING).tolist()]
+        ended = np.flatnonzero(slots[6] > kernel.RUNNING).tolist()
+        return [(self._keys[b], self._result(b)) for b in ended]
 
     def _qp(self, b: int) -> FingerStepQP:
         """Slot ``b``'s finger-step QP (OSQP, set up on first use)."""
@@ -133,8 +136,9 @@ class LockstepFitter:
         T, q, R, p, status = (a[b] for a in self._slots[:4] + (self._slots[6],))
         cache = tuple(a[b] for a in self._slots[14:18])
         self._slots[6][b] = kernel.EMPTY
-        return _scored(self.gripper, self.obj, self.config, self._grip, T.copy(), q.copy(), R, p, cache,
-                       _STATUS[int(status)], self._records(b), time.perf_counter() - self._started[b])
+        elapsed = time.perf_counter() - self._started[b]
+        return _scored(self.gripper, self.obj, self.config, self._grip, T.copy(), q.copy(), R, p,
+                       cache, _STATUS[int(status)], self._records(b), elapsed)
 
     def _records(self, b: int) -> tuple[IterationRecord, ...]:
         count = int(self._history[-1][b])
@@ -142,23 +146,26 @@ class LockstepFitter:
             a[b, :count].tolist() for a in self._history[:5] + (self._history[7],))
         ipfo = self._history[6][b, :count].tolist()
         q = self._history[5][b, :count].copy()
-        return tuple(IterationRecord(level=level[h], iteration=iteration[h], mean_distance=distance[h],
-                                     error=error[h], n_pairs=pairs[h], q=q[h],
-                                     ipfo_errors=tuple(ipfo[h][:n_ipfo[h]]))
+        return tuple(IterationRecord(level=level[h], iteration=iteration[h],
+                                     mean_distance=distance[h], error=error[h], n_pairs=pairs[h],
+                                     q=q[h], ipfo_errors=tuple(ipfo[h][:n_ipfo[h]]))
                      for h in range(count))
 
     def _allocate(self, n_slots: int) -> tuple[tuple, tuple]:
-        """Empty slot and history arrays for ``n_slots`` fits (see :func:`isf.lockstep_kernel.run`)."""
+        """Empty slot and history arrays for ``n_slots`` fits (see
+        :func:`isf.lockstep_kernel.run`)."""
         g, S = self.gripper, n_slots
         n, L, P, K = g.n_joints, len(g.contact_links), g.n_points, kernel.CANDIDATES
-        H, I = self._history_length, self.config.max_ipfo_iterations
+        H, n_ipfo = self._history_length, self.config.max_ipfo_iterations
         slots = (np.zeros((S, 4, 4)), np.zeros((S, n)), np.zeros((S, L, 3, 3)), np.zeros((S, L, 3)),
                  np.zeros((S, L, 3, n)), np.zeros((S, L, 3, n)), np.full(S, kernel.EMPTY, np.int64),
                  np.zeros(S, np.int64), np.zeros(S, np.int64), np.zeros(S), np.zeros(S),
                  np.zeros((S, P, 3)), np.zeros((S, P, 3)), np.zeros((S, P, 3)),
-                 np.zeros((S, P, 3)), np.zeros((S, P)), np.zeros((S, P, K), np.int64), np.zeros((S, P), np.bool_))
-        history = (np.zeros((S, H), np.int64), np.zeros((S, H), np.int64), np.zeros((S, H)), np.zeros((S, H)),
-                   np.zeros((S, H), np.int64), np.zeros((S, H, n)), np.zeros((S, H, I)),
+                 np.zeros((S, P, 3)), np.zeros((S, P)), np.zeros((S, P, K), np.int64),
+                 np.zeros((S, P), np.bool_))
+        history = (np.zeros((S, H), np.int64), np.zeros((S, H), np.int64), np.zeros((S, H)),
+                   np.zeros((S, H)),
+                   np.zeros((S, H), np.int64), np.zeros((S, H, n)), np.zeros((S, H, n_ipfo)),
                    np.zeros((S, H), np.int64), np.zeros(S, np.int64))
         return slots, history
 
@@ -194,8 +201,9 @@ def fit_parameters(config: FitConfig) -> tuple:
     """The parameters of :func:`isf.lockstep_kernel.run` read from ``config``."""
     check_normals = config.max_normal_angle < np.pi
     return (int(config.levels), int(config.max_iterations), float(config.tolerance),
-            float(config.outlier_factor), float(config.outlier_floor), config.outlier_scope == "surface",
-            bool(config.reject_duplicates), bool(check_normals), float(-np.cos(config.max_normal_angle)),
+            float(config.outlier_factor), float(config.outlier_floor),
+            config.outlier_scope == "surface", bool(config.reject_duplicates), bool(check_normals),
+            float(-np.cos(config.max_normal_angle)),
             int(config.min_pairs), float(config.contact_distance))
 
 
@@ -204,9 +212,11 @@ def score_fit(gripper: Gripper, obj: ObjectSurface, T: np.ndarray, q: np.ndarray
     """The :class:`FitResult` of a final state ``(T, q)``: all contact points matched afresh."""
     P = gripper.n_points
     links = gripper.link_kinematics(q)
-    cache = (np.zeros((P, 3)), np.zeros(P), np.zeros((P, kernel.CANDIDATES), np.int64), np.zeros(P, np.bool_))
-    return _scored(gripper, obj, config, gripper_arrays(gripper, 1), np.array(T, dtype=float),
-                   np.array(q, dtype=float), links.rotations, links.positions, cache, status, history, elapsed)
+    cache = (np.zeros((P, 3)), np.zeros(P), np.zeros((P, kernel.CANDIDATES), np.int64),
+             np.zeros(P, np.bool_))
+    T, q = np.array(T, dtype=float), np.array(q, dtype=float)
+    return _scored(gripper, obj, config, gripper_arrays(gripper, 1), T, q, links.rotations,
+                   links.positions, cache, status, history, elapsed)
 
 
 def _scored(gripper: Gripper, obj: ObjectSurface, config: FitConfig, grip: tuple, T: np.ndarray,
@@ -222,7 +232,8 @@ def _scored(gripper: Gripper, obj: ObjectSurface, config: FitConfig, grip: tuple
     return FitResult(
         T_object_gripper=T, q=q, joints=gripper.joints(q), mean_distance=float(mean_distance),
         normal_misalignment=float(misalignment), error=float(error), n_pairs=len(rows),
-        contact_points=points[rows], object_points=obj.points[targets], surface_contact=surface_contact,
+        contact_points=points[rows], object_points=obj.points[targets],
+        surface_contact=surface_contact,
         iterations=len(history), status=status, history=history, time=elapsed,
     )
 
@@ -238,7 +249,8 @@ def _check_pose(T: np.ndarray) -> np.ndarray:
     identity = np.eye(3)
     # np.allclose's tests (|a - b| <= atol + 1e-5 |b|) written out: allclose costs ~50 us a call
     orthonormal = np.all(np.abs(R.T @ R - identity) <= 1e-6 + 1e-5 * identity)
-    homogeneous = np.abs(T[3] - [0.0, 0.0, 0.0, 1.0]) <= 1e-8 + 1e-5 * np.array([0.0, 0.0, 0.0, 1.0])
+    last = np.array([0.0, 0.0, 0.0, 1.0])
+    homogeneous = np.abs(T[3] - last) <= 1e-8 + 1e-5 * last
     last_row = np.all(homogeneous)
     if not orthonormal or np.linalg.det(R) < 0.0 or not last_row:
         raise InvalidInputError(

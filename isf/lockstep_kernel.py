@@ -95,6 +95,20 @@ def refill(x, y, z, g, x0, radius, candidates, valid, tree, scratch, best_d2, be
     return best[0], best_d2[0]
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _dot(a, i, b, j):
+    """``a[i] . b[j]`` of two (., 3) arrays, summed in coordinate order."""
+    return a[i, 0] * b[j, 0] + a[i, 1] * b[j, 1] + a[i, 2] * b[j, 2]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _plane_distance(points, i, targets, normals, j):
+    """``(points[i] - targets[j]) . normals[j]``: a point's signed distance from a tangent plane."""
+    return ((points[i, 0] - targets[j, 0]) * normals[j, 0]
+            + (points[i, 1] - targets[j, 1]) * normals[j, 1]
+            + (points[i, 2] - targets[j, 2]) * normals[j, 2])
+
+
 @njit(cache=True, error_model="numpy")
 def _match(points, normals, rows, count, grip, obj, fit_params, x0, radius, candidates, valid,
            dist, target, keep, work):
@@ -103,18 +117,18 @@ def _match(points, normals, rows, count, grip, obj, fit_params, x0, radius, cand
     returns the number kept. ``work``: scratch from ``_work``."""
     point_surface = grip[3]
     obj_points, obj_normals, tree = obj
-    per_surface, reject_duplicates, check_normals, cos_limit = fit_params[5], fit_params[6], fit_params[7], fit_params[8]
-    scratch, best_d2, best, ranked, best_row, stamp, compatible = work[0], work[1], work[2], work[3], work[4], work[5], work[6]
+    per_surface, reject_duplicates, check_normals, cos_limit = fit_params[5:9]
+    scratch, best_d2, best, ranked, best_row, stamp, compatible = work
     for i in range(count):
         x, y, z = points[i, 0], points[i, 1], points[i, 2]
-        target[i], d2, hit = cached_nearest(x, y, z, rows[i], x0, radius, candidates, valid, obj_points)
+        g = rows[i]
+        target[i], d2, hit = cached_nearest(x, y, z, g, x0, radius, candidates, valid, obj_points)
         if not hit:
-            target[i], d2 = refill(x, y, z, rows[i], x0, radius, candidates, valid, tree, scratch, best_d2, best)
+            target[i], d2 = refill(x, y, z, g, x0, radius, candidates, valid, tree, scratch,
+                                   best_d2, best)
         dist[i] = np.sqrt(d2)
         if check_normals:
-            t = target[i]
-            dot = normals[i, 0] * obj_normals[t, 0] + normals[i, 1] * obj_normals[t, 1] + normals[i, 2] * obj_normals[t, 2]
-            compatible[i] = dot <= cos_limit
+            compatible[i] = _dot(normals, i, obj_normals, target[i]) <= cos_limit
         else:
             compatible[i] = True
     a = 0
@@ -143,8 +157,8 @@ def _work(n_points, n_object):
     (``stamp`` with one extra entry that counts tags) and a compatibility mask."""
     stamp = np.full(n_object + 1, -1, np.int64)
     stamp[-1] = 0
-    return (search_scratch(), np.empty(CANDIDATES), np.empty(CANDIDATES, np.int64), np.empty(n_points),
-            np.empty(n_object, np.int64), stamp, np.empty(n_points, np.bool_))
+    return (search_scratch(), np.empty(CANDIDATES), np.empty(CANDIDATES, np.int64),
+            np.empty(n_points), np.empty(n_object, np.int64), stamp, np.empty(n_points, np.bool_))
 
 
 @njit(cache=True, error_model="numpy")
@@ -178,10 +192,12 @@ def _empty_round(n, n_links, n_ipfo):
     """A round's data with no fits (see :func:`run`), of the types a real round has."""
     return ((np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)),
              np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0, np.int64)),
-            (np.zeros((0, 4, 4)), np.zeros((0, n)), np.zeros((0, n_links, 3, 3)), np.zeros((0, n_links, 3)),
-             np.zeros((0, n_links, 3, n)), np.zeros((0, n_links, 3, n)), np.zeros(0), np.zeros(0, np.bool_),
+            (np.zeros((0, 4, 4)), np.zeros((0, n)), np.zeros((0, n_links, 3, 3)),
+             np.zeros((0, n_links, 3)), np.zeros((0, n_links, 3, n)), np.zeros((0, n_links, 3, n)),
+             np.zeros(0), np.zeros(0, np.bool_),
              np.zeros((0, n_ipfo)), np.zeros(0, np.int64)),
-            (np.zeros((0, 3)), np.zeros(0), np.zeros((0, 12, 12)), np.zeros((0, 9, 9)), np.zeros((0, 12)),
+            (np.zeros((0, 3)), np.zeros(0), np.zeros((0, 12, 12)), np.zeros((0, 9, 9)),
+             np.zeros((0, 12)),
              np.zeros(0), np.zeros((0, 9)), np.zeros((0, 4)), np.zeros(0), np.zeros(0)))
 
 
@@ -195,13 +211,15 @@ def _prepare(slots, grip, obj, fit_params, ipfo_params, work, n_links):
     IPFO's ``active`` flags, error log and log length; ``moments`` = the moments of
     :func:`isf.moment_kernels.group_moments` and IPFO's stop thresholds (F,). A slot left with
     fewer than ``min_pairs`` pairs ends as LOST_CONTACT."""
-    T, q, R, p, Jv, Jw, status, level_of = slots[0], slots[1], slots[2], slots[3], slots[4], slots[5], slots[6], slots[7]
-    current, current_normals, x0, radius, candidates, valid = slots[11], slots[12], slots[14], slots[15], slots[16], slots[17]
+    T, q, R, p, Jv, Jw, status, level_of = slots[:8]
+    current, current_normals = slots[11:13]
+    x0, radius, candidates, valid = slots[14:18]
     points_link, normals_link, point_link = grip[0], grip[1], grip[2]
     obj_points, obj_normals = obj[0], obj[1]
     n_points = len(point_link)
     n_slots = len(status)
-    dist, target, keep = np.empty(n_points), np.empty(n_points, np.int64), np.empty(n_points, np.bool_)
+    dist, target = np.empty(n_points), np.empty(n_points, np.int64)
+    keep = np.empty(n_points, np.bool_)
     fits = np.empty(n_slots, np.int64)
     kept_rows = np.empty((n_slots, n_points), np.int64)
     kept_targets = np.empty((n_slots, n_points), np.int64)
@@ -211,7 +229,8 @@ def _prepare(slots, grip, obj, fit_params, ipfo_params, work, n_links):
         if status[b] != RUNNING:
             continue
         rows, count = grip[4][level_of[b]], grip[5][level_of[b]]
-        kept = _match(current[b], current_normals[b], rows, count, grip, obj, fit_params, x0[b], radius[b],
+        kept = _match(current[b], current_normals[b], rows, count, grip, obj, fit_params, x0[b],
+                      radius[b],
                       candidates[b], valid[b], dist, target, keep, work)
         if kept < fit_params[9]:
             status[b] = LOST_CONTACT
@@ -237,18 +256,21 @@ def _prepare(slots, grip, obj, fit_params, ipfo_params, work, n_links):
                 pair_points[k, j], pair_normals[k, j] = points_link[g, j], normals_link[g, j]
                 targets[k, j], target_normals[k, j] = obj_points[t, j], obj_normals[t, j]
             k += 1
-    moments = group_moments(pair_fit, pair_link, pair_points, pair_normals, targets, target_normals, n_fits, n_links)
+    moments = group_moments(pair_fit, pair_link, pair_points, pair_normals, targets, target_normals,
+                            n_fits, n_links)
     origin, fit_count, M, N, v, beta2, w, s, count_g = moments
     Tc, qc = np.empty((n_fits, 4, 4)), np.empty((n_fits, q.shape[1]))
     Rc, pc = np.empty((n_fits, n_links, 3, 3)), np.empty((n_fits, n_links, 3))
-    Jvc, Jwc = np.empty((n_fits, n_links, 3, Jv.shape[3])), np.empty((n_fits, n_links, 3, Jv.shape[3]))
+    n = q.shape[1]
+    Jvc, Jwc = np.empty((n_fits, n_links, 3, n)), np.empty((n_fits, n_links, 3, n))
     for f in range(n_fits):
         b = fits[f]
         Tc[f], qc[f], Rc[f], pc[f], Jvc[f], Jwc[f] = T[b], q[b], R[b], p[b], Jv[b], Jw[b]
     error = fit_errors(Tc, Rc, pc, origin, M, N, v, beta2, w, count_g, ipfo_params[0] ** 2)
     threshold = ipfo_params[2] * n_pairs.astype(np.float64)
     log = np.empty((n_fits, ipfo_params[3]))
-    state = (Tc, qc, Rc, pc, Jvc, Jwc, error, np.ones(n_fits, np.bool_), log, np.zeros(n_fits, np.int64))
+    active, n_log = np.ones(n_fits, np.bool_), np.zeros(n_fits, np.int64)
+    state = (Tc, qc, Rc, pc, Jvc, Jwc, error, active, log, n_log)
     pairs = (fits, pair_fit, pair_link, pair_points, pair_normals, targets, target_normals, n_pairs)
     return pairs, state, (origin, fit_count, M, N, v, beta2, w, s, count_g, threshold)
 
@@ -257,19 +279,16 @@ def _prepare(slots, grip, obj, fit_params, ipfo_params, work, n_links):
 def finish_round(slots, history, grip, fit_params, pairs, state):
     """Step 3 of a round (see the module docstring), after IPFO has run on ``state``: the fits'
     new states, history records, stop rules and level changes. Returns how many fits ended."""
-    T, q, R, p, Jv, Jw, status, level_of = slots[0], slots[1], slots[2], slots[3], slots[4], slots[5], slots[6], slots[7]
-    iteration, displacement, eta = slots[8], slots[9], slots[10]
-    current, current_normals, start = slots[11], slots[12], slots[13]
+    T, q, R, p, Jv, Jw, status, level_of, iteration, displacement, eta = slots[:11]
+    current, current_normals, start = slots[11:14]
     h_level, h_iteration, h_distance, h_error, h_pairs, h_q, h_ipfo, h_n_ipfo, h_count = history
     fits, pair_fit, pair_link, pair_points, pair_normals, targets, target_normals, n_pairs = pairs
     Tc, qc, Rc, pc, Jvc, Jwc, error, _, log, n_log = state
     points, _ = points_in_object(Tc, Rc, pc, pair_fit, pair_link, pair_points, pair_normals)
     distance = np.zeros(len(fits))
     for k in range(len(pair_fit)):
-        d = ((points[k, 0] - targets[k, 0]) * target_normals[k, 0] + (points[k, 1] - targets[k, 1])
-             * target_normals[k, 1] + (points[k, 2] - targets[k, 2]) * target_normals[k, 2])
-        distance[pair_fit[k]] += abs(d)
-    levels, max_iterations, tolerance = fit_params[0], fit_params[1], fit_params[2]
+        distance[pair_fit[k]] += abs(_plane_distance(points, k, targets, target_normals, k))
+    max_iterations, tolerance = fit_params[1], fit_params[2]
     ended = 0
     for f in range(len(fits)):
         b = fits[f]
@@ -287,7 +306,8 @@ def finish_round(slots, history, grip, fit_params, pairs, state):
         eta[b] = 1.0 if displacement[b] <= 1e-12 else displacement[b] / previous
         h = h_count[b]
         h_level[b, h], h_iteration[b, h] = level, iteration[b]
-        h_distance[b, h], h_error[b, h], h_pairs[b, h] = distance[f] / n_pairs[f], error[f], n_pairs[f]
+        h_distance[b, h], h_error[b, h] = distance[f] / n_pairs[f], error[f]
+        h_pairs[b, h] = n_pairs[f]
         h_q[b, h] = q[b]
         h_ipfo[b, h], h_n_ipfo[b, h] = log[f], n_log[f]
         h_count[b] = h + 1
@@ -375,9 +395,11 @@ def score_state(T, R, p, grip, obj, fit_params, alpha, x0, radius, candidates, v
     rows = np.arange(n_points)
     points, normals = np.empty((n_points, 3)), np.empty((n_points, 3))
     _place_points(T, R, p, rows, n_points, grip, points, normals)
-    dist, target, keep = np.empty(n_points), np.empty(n_points, np.int64), np.empty(n_points, np.bool_)
+    dist, target = np.empty(n_points), np.empty(n_points, np.int64)
+    keep = np.empty(n_points, np.bool_)
     work = _work(n_points, len(obj[0]))
-    kept = _match(points, normals, rows, n_points, grip, obj, fit_params, x0, radius, candidates, valid,
+    kept = _match(points, normals, rows, n_points, grip, obj, fit_params, x0, radius, candidates,
+                  valid,
                   dist, target, keep, work)
     obj_points, obj_normals = obj[0], obj[1]
     kept_rows, kept_targets = np.empty(kept, np.int64), np.empty(kept, np.int64)
@@ -387,9 +409,8 @@ def score_state(T, R, p, grip, obj, fit_params, alpha, x0, radius, candidates, v
         if not keep[i]:
             continue
         t = target[i]
-        d = ((points[i, 0] - obj_points[t, 0]) * obj_normals[t, 0] + (points[i, 1] - obj_points[t, 1])
-             * obj_normals[t, 1] + (points[i, 2] - obj_points[t, 2]) * obj_normals[t, 2])
-        c = normals[i, 0] * obj_normals[t, 0] + normals[i, 1] * obj_normals[t, 1] + normals[i, 2] * obj_normals[t, 2] + 1.0
+        d = _plane_distance(points, i, obj_points, obj_normals, t)
+        c = _dot(normals, i, obj_normals, t) + 1.0
         distance += abs(d)
         misalignment += np.arccos(min(max(1.0 - c, -1.0), 1.0))
         error += d * d + alpha * alpha * (c * c)

@@ -40,9 +40,10 @@ def test_the_nearest_point_cache_answers_what_a_full_search_answers(n_points):
         jump = rng.random(n_walkers) < 0.05
         position += np.where(jump[:, None], 0.004, 0.00005) * rng.normal(size=position.shape)
         for g, (x, y, z) in enumerate(position):
-            index, d2, hit = kernel.cached_nearest(x, y, z, g, x0, radius, candidates, valid, points)
+            cache = (x0, radius, candidates, valid)
+            index, d2, hit = kernel.cached_nearest(x, y, z, g, *cache, points)
             if not hit:
-                index, d2 = kernel.refill(x, y, z, g, x0, radius, candidates, valid, tree, scratch, best_d2, best)
+                index, d2 = kernel.refill(x, y, z, g, *cache, tree, scratch, best_d2, best)
             hits += hit
             assert (index, d2) == _brute_force(points, position[g]), (step, g)
     assert hits > 0.5 * 300 * n_walkers  # the cache did answer most of them
@@ -57,7 +58,8 @@ def _starts(rng, gripper, n):
     """Grasp-like starts: the gripper above the cylinder's axis, turned and moved a little."""
     T = make_transform(np.eye(3), [0.0, 0.0, -0.06]) if gripper.name == "paper-parallel" else \
         make_transform(np.eye(3), [0.0, 0.0, -0.05])
-    return [make_transform(random_rotation(rng, 0.3), rng.normal(scale=0.003, size=3)) @ T for _ in range(n)]
+    return [make_transform(random_rotation(rng, 0.3), rng.normal(scale=0.003, size=3)) @ T
+            for _ in range(n)]
 
 
 @pytest.mark.parametrize("name", ["paper-parallel", "three-finger"])
@@ -76,15 +78,17 @@ def test_one_round_equals_the_correspondences_and_ipfo_of_the_python_pieces(name
         points, normals = points @ T0[:3, :3].T + T0[:3, 3], normals @ T0[:3, :3].T
         fit = Segments.single(len(points))
         pairs = match_many(cylinder, points, fit, outlier_factor=config.outlier_factor,
-                           outlier_floor=config.outlier_floor, reject_duplicates=config.reject_duplicates,
+                           outlier_floor=config.outlier_floor,
+                           reject_duplicates=config.reject_duplicates,
                            normals=normals, max_normal_angle=config.max_normal_angle,
                            outlier_groups=Segments.runs(gripper.point_surface))
         assert result.history[0].n_pairs == len(pairs.source)
         batch = PairBatch(gripper, Segments.single(len(pairs.source)), pairs.source,
                           cylinder.points[pairs.target], cylinder.normals[pairs.target])
-        expected = ipfo(batch, T0[None], q0[None], [FingerStepQP(gripper.n_joints, config.finger_damping)],
-                        config)
-        np.testing.assert_allclose(result.T_object_gripper, expected.T_object_gripper[0], rtol=0, atol=1e-12)
+        qp = FingerStepQP(gripper.n_joints, config.finger_damping)
+        expected = ipfo(batch, T0[None], q0[None], [qp], config)
+        np.testing.assert_allclose(result.T_object_gripper, expected.T_object_gripper[0], rtol=0,
+                                   atol=1e-12)
         np.testing.assert_allclose(result.q, expected.q[0], rtol=0, atol=1e-12)
         assert result.history[0].ipfo_errors == pytest.approx(expected.errors[0], rel=1e-9)
 
