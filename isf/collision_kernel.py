@@ -5,7 +5,7 @@ up to the exact clearance measurements: the obstacle planes, the culling of elem
 patches (object box, voxels, bounding spheres), the tangent-plane estimate at the patch
 centres, the first-order predictions with their trust bounds, the refinement rounds, each
 element's depth summaries, the object points inside its convex elements and the clearance
-candidates. Its arrays are prepared once per checker (:func:`isf.collision._packed`).
+candidates. Its arrays are prepared once per checker (``isf.collision._packed``).
 
 Conventions: ``poses`` (E, 4, 4) place the elements in the object frame; the *active*
 elements are those whose samples are tested; a *row* is one sample of an opened patch, or the
@@ -536,7 +536,7 @@ def check_elements(T, link_R, link_p, tolerance, obstacles, elements, patches, s
             with ``i = (a * shape[1] + b) * shape[2] + c``.
         voxels: ``(present, table, steps, lo, size)`` of :class:`isf.collision_voxels.SurfaceVoxels`.
         interiors: the non-convex closed elements' hull planes, grids and surfaces (with their
-            trees) stacked, each with its start per element (:func:`isf.collision._packed`).
+            trees) stacked, each with its start per element (``isf.collision._packed``).
 
     Returns:
         ``(poses, depth, where, clearance, candidates, owner, nearest, estimates)``: the elements'

@@ -1,7 +1,7 @@
 """A signed-distance estimate from the tangent planes of nearby surface points.
 
 A query point's signed distance is the largest of ``(p - o_k) . n_k`` over its
-:data:`NEIGHBOURS` nearest surface points ``o_k`` with outward normals ``n_k``: a point is
+``NEIGHBOURS`` (6) nearest surface points ``o_k`` with outward normals ``n_k``: a point is
 inside only when it lies below every nearby tangent plane (see :mod:`isf.collision`).
 """
 

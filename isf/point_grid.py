@@ -18,7 +18,7 @@ MAX_CELLS = 1 << 18
 
 class PointGrid:
     """Points (N, 3) in a grid of cubic cells about ``cell`` metres wide (larger when the points
-    spread so far that the grid would exceed :data:`MAX_CELLS` cells).
+    spread so far that the grid would exceed ``MAX_CELLS`` cells).
 
     Attributes:
         points: the points, (N, 3).

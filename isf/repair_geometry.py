@@ -2,12 +2,12 @@
 
 * :func:`gripper_side`: points sampled on every geometry element of the gripper (in its link
   frame), the elements' bounding spheres and floors, and the closed convex elements
-  (:class:`isf.convex_elements.ConvexElements`). Cached per gripper and parameters, so the
+  (``isf.convex_elements.ConvexElements``). Cached per gripper and parameters, so the
   repairs of every plan with one gripper share them.
-* :func:`object_side`: the object's tangent planes (:class:`isf.collision_surface.TangentPlanes`)
+* :func:`object_side`: the object's tangent planes (``isf.collision_surface.TangentPlanes``)
   on its points plus, for a closed mesh, area-uniform samples of the mesh; and a
   :class:`isf.point_grid.PointGrid` of the same points. Cached on the mesh
-  (:func:`isf.collision_surface.mesh_memo`).
+  (``isf.collision_surface.mesh_memo``).
 
 Both draw their random samples from one generator (seeded 0 by the repair): the object's
 resampling takes its seed first, when there is one.
