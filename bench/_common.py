@@ -143,6 +143,41 @@ class Timing:
         return f"{med} ({low}-{high}, n={self.n}{cut})"
 
 
+def use_cpus(count: int) -> str:
+    """Let the process run on ``count`` of the CPUs usable at start (the pinned one first), for
+    ``isf.plan(..., workers=count)``; returns a note. Does nothing when pinning is off
+    (``ISF_BENCH_CPU=none``)."""
+    if PINNING == "not pinned to a CPU" or not hasattr(os, "sched_setaffinity"):
+        return PINNING
+    chosen = os.environ.get("ISF_BENCH_CPU", "")
+    first = int(chosen) if chosen.isdigit() else max(_USABLE_AT_START)
+    cpus = [first] + sorted(set(_USABLE_AT_START) - {first}, reverse=True)
+    os.sched_setaffinity(0, set(cpus[:count]))
+    return f"on CPU(s) {sorted(os.sched_getaffinity(0))}"
+
+
+@dataclass(frozen=True)
+class Mode:
+    """How ``isf.plan`` runs the samples: ``batch_size`` in lockstep in one thread, or one at a
+    time on ``workers`` threads."""
+
+    batch_size: int = 1
+    workers: int = 1
+
+    @property
+    def label(self) -> str:
+        return f"W={self.workers}" if self.workers > 1 else f"B={self.batch_size}"
+
+    @classmethod
+    def parse(cls, text: str) -> Mode:
+        """``"8"``: batch size 8; ``"w2"``: two worker threads."""
+        if text.lower().startswith("w") and text[1:].isdigit() and int(text[1:]) >= 1:
+            return cls(workers=int(text[1:]))
+        if text.isdigit() and int(text) >= 1:
+            return cls(batch_size=int(text))
+        raise ValueError(f"{text!r} is neither a batch size (8) nor a worker count (w2)")
+
+
 def default_batch_size() -> int:
     """The ``batch_size`` that ``isf.plan`` uses when none is given."""
     import inspect

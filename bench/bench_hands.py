@@ -18,15 +18,16 @@ collision-free grasps (``FitResult.mean_distance``), ``t_total`` (``PlanStats.to
 time per collision-free grasp; medians over ``--repeats`` runs (seeds 0, 1, ...) cut by
 ``--budget`` seconds per configuration (at least one run).
 
-``--batch-size`` sets ``isf.plan``'s ``batch_size`` (default: its default; 1 = the paper's
-sequential loop); ``--objects N`` runs the first N objects only; ``--quick``: one object, 15
+``--modes`` lists how ``isf.plan`` runs the samples, one row each (default ``w2,1``: one at a
+time on two worker threads, ``workers=2``, the process then allowed two CPUs; and 1, the paper's
+sequential loop, ``isf.plan``'s default); the last mode is the reference of the speed-up column; ``--objects N`` runs the first N objects only; ``--quick``: one object, 15
 samples, one run. ``--finger-damping`` sets ``FitConfig.finger_damping`` for both hands (a
 diagnostic: the default config's finger QP may fail to converge on a 16-joint hand; the run then
 reports the failures).
 
 Run from the repository root:
     python bench/bench_hands.py [--quick] [--repeats 3] [--budget 20] [--hands allegro-right]
-                                [--objects 1] [--batch-size 1] [--finger-damping 1e-6]
+                                [--objects 1] [--modes w2,1] [--finger-damping 1e-6]
 """
 
 from __future__ import annotations
@@ -140,16 +141,17 @@ def load_objects(count: int) -> tuple[list[isf.ObjectSurface], str]:
     return objects[:count], note
 
 
-def bench(hand: str, gripper, obj, args) -> dict:
+def bench(hand: str, gripper, obj, mode: _common.Mode, args) -> dict:
     config = None if args.finger_damping is None else isf.FitConfig(
         finger_damping=args.finger_damping)
+    _common.use_cpus(mode.workers)
     runs, failed = _common.run_repeats(
         lambda seed: _common.plan_once(gripper, obj, args.samples, seed, config,
-                                       batch_size=args.batch_size),
+                                       batch_size=mode.batch_size, workers=mode.workers),
         args.repeats, _common.budget_or_none(args), catch=(isf.ISFError,))
     row = _common.median_row(runs, failed, args.repeats)
-    row["hand"], row["object"], row["points"] = hand, obj.name, obj.n_points
-    print(f"#   {hand} on {obj.name}: t_total (s) {_common.timing_cell(row)}, "
+    row["hand"], row["object"], row["points"], row["mode"] = hand, obj.name, obj.n_points, mode
+    print(f"#   {hand} on {obj.name}, {mode.label}: t_total (s) {_common.timing_cell(row)}, "
           f"{row.get('free', 0):g} collision-free", flush=True)
     return row
 
@@ -157,27 +159,37 @@ def bench(hand: str, gripper, obj, args) -> dict:
 def report(rows: list[dict], note: str, args, deadline) -> list[str]:
     targets = {"three-finger": _common.TARGETS["t_total_60_three_finger_s"],
                ALLEGRO: _common.TARGETS["t_total_60_allegro_s"]}
-    body = [[r["hand"], r["object"], r["points"],
-             _common.timing_cell(r) if "failed" in r else "skipped (deadline)"] + ["-"] * 9
+    reference = {(r["hand"], r["object"]): r for r in rows if r["mode"] == args.modes[-1]}
+
+    def speed_up(r: dict) -> str:
+        ref = reference.get((r["hand"], r["object"]))
+        return _common.fmt(ref["t_total"] / r["t_total"]) if ref and "timing" in ref else "-"
+
+    body = [[r["hand"], r["object"], r["points"], r["mode"].label,
+             _common.timing_cell(r) if "failed" in r else "skipped (deadline)"] + ["-"] * 10
             if "timing" not in r else [
-        r["hand"], r["object"], r["points"], f"{r['free']:g}/{args.samples}", f"{r['valid']:g}",
+        r["hand"], r["object"], r["points"], r["mode"].label, f"{r['free']:g}/{args.samples}",
+        f"{r['valid']:g}",
         _common.fmt(r["error"] * 1e3), _common.timing_cell(r), _common.fmt(r["cpu"]),
         _common.fmt(r["per_free"] * 1e3), f"{r['fit']:.2f} / {r['collision']:.2f}",
-        f"{r['iterations']:.0f}", f"<= {targets[r['hand']]:g}",
+        f"{r['iterations']:.0f}", speed_up(r), f"<= {targets[r['hand']]:g}",
         _common.verdict(r["t_total"], targets[r["hand"]]),
     ] for r in rows]
     paper = _common.PAPER
-    body.append(["paper (parallel jaw only; Matlab)", "9 objects", f"{paper['vertices']:.0f}",
+    body.append(["paper (parallel jaw only; Matlab)", "9 objects", f"{paper['vertices']:.0f}", "-",
                  f"{paper['free_of_60']}/60", "-", "-", f"{paper['t_total_60']}", "-",
-                 f"{paper['ms_per_free']}", "-", "-", "-", "-"])
+                 f"{paper['ms_per_free']}", "-", "-", "-", "-", "-"])
     table = _common.markdown_table(
-        ["hand", "object", "points", "collision-free", "valid (all tips touch)",
+        ["hand", "object", "points", "mode", "collision-free", "valid (all tips touch)",
          "mean fit error of collision-free (mm)", "t_total (s), median (min-max)",
-         "CPU time (s)", "ms per collision-free", "ISF / collision time (s)",
-         "ISF iterations per sample", "target t_total (s)", "met?"], body)
+         "CPU time (s)", "ms per collision-free",
+         "ISF and repair / collision time (s), summed over threads", "ISF iterations per sample",
+         f"t_total({args.modes[-1].label}) / t_total", "target t_total (s)", "met?"], body)
     damping = ("the default `FitConfig`" if args.finger_damping is None else
                f"`FitConfig(finger_damping={args.finger_damping:g})` (NOT the default)")
-    text = (f"{args.samples} samples, regret sampler, batch size {args.batch_size}, {damping}, "
+    text = (f"{args.samples} samples, regret sampler, modes "
+            f"{', '.join(m.label for m in args.modes)} (B: samples in lockstep in one thread, W: "
+            f"worker threads on as many CPUs), {damping}, "
             f"objects: {note}, at most "
             f"{MAX_POINTS} points; "
             f"up to {args.repeats} runs per row (budget {args.budget:g} s). CPU time: process "
@@ -194,15 +206,20 @@ def main() -> None:
     parser.add_argument("--finger-damping", type=float, default=None,
                         help="FitConfig.finger_damping for both hands (default: FitConfig's); a "
                              "diagnostic for finger QPs that fail to converge")
-    parser.add_argument("--batch-size", type=int, default=_common.default_batch_size(),
-                        help="batch_size of isf.plan (default: its default, "
-                             f"{_common.default_batch_size()}; 1 = the paper's sequential loop)")
+    parser.add_argument("--modes", default="w2,1",
+                        help="comma-separated modes of isf.plan: a batch size (1: the paper's "
+                             "sequential loop) or wN (N worker threads); default w2,1; the last "
+                             "is the reference of the speed-up column")
     parser.add_argument("--objects", type=int, default=len(YCB_OBJECTS),
                         help=f"how many of the benchmark objects to run, in order (default "
                              f"{len(YCB_OBJECTS)}; --quick: 1)")
     parser.add_argument("--samples", type=int, default=SAMPLES,
                         help=f"samples per plan (default {SAMPLES}; --quick: {QUICK_SAMPLES})")
     args = parser.parse_args()
+    try:
+        args.modes = [_common.Mode.parse(m) for m in args.modes.split(",")]
+    except ValueError as err:
+        parser.error(f"--modes: {err}")
     if args.quick:
         args.repeats, args.objects = min(args.repeats, 1), 1
         args.samples = min(args.samples, QUICK_SAMPLES)
@@ -221,10 +238,12 @@ def main() -> None:
         hands = [(name, makers[name]()) for name in wanted]
         for obj in objects:  # both hands on the first object first (priority under --deadline)
             for hand, gripper in hands:
-                if deadline.allows(f"{hand} on {obj.name}"):
-                    rows.append(bench(hand, gripper, obj, args))
-                else:
-                    rows.append({"hand": hand, "object": obj.name, "points": obj.n_points})
+                for mode in args.modes:
+                    if deadline.allows(f"{hand} on {obj.name}, {mode.label}"):
+                        rows.append(bench(hand, gripper, obj, mode, args))
+                    else:
+                        rows.append({"hand": hand, "object": obj.name, "points": obj.n_points,
+                                     "mode": mode})
     rows.sort(key=lambda r: [h for h, _ in hands].index(r["hand"]))
     _common.finish("bench_hands: multi-fingered hands", report(rows, note, args, deadline),
                    started, header, args.out)

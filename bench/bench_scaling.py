@@ -13,10 +13,11 @@ outside it and listed separately. Medians over ``--repeats`` runs with seeds 0, 
 configuration stops repeating once its runs took ``--budget`` seconds (at least one run), and the
 tables show how many runs each median has. The growth ratio is t_total(200k) / t_total(2k).
 ``--batch-size`` sets ``isf.plan``'s ``batch_size`` (default: its default; 1 = the paper's
-sequential loop). ``--quick``: 2k and 10k points, 15 samples, one run each.
+sequential loop); ``--workers N`` plans on N worker threads (``isf.plan(..., workers=N)``) and
+lets the process run on N CPUs. ``--quick``: 2k and 10k points, 15 samples, one run each.
 
 Run from the repository root:
-    python bench/bench_scaling.py [--quick] [--repeats 3] [--budget 20] [--batch-size 1]
+    python bench/bench_scaling.py [--quick] [--repeats 3] [--budget 20] [--batch-size 1] [--workers 2]
                                   [--sizes 2000,200000] [--sample-counts 60]
 """
 
@@ -67,6 +68,7 @@ def measure(gripper, obj, samples: int, args) -> dict:
         else spacing
     runs, failed = _common.run_repeats(lambda seed: _common.plan_once(gripper, obj, samples, seed,
                                                                       batch_size=args.batch_size,
+                                                                      workers=args.workers,
                                                                       working_spacing=spacing),
                                        args.repeats, _common.budget_or_none(args),
                                        catch=(isf.ISFError,))
@@ -148,6 +150,9 @@ def main() -> None:
     parser.add_argument("--batch-size", type=int, default=_common.default_batch_size(),
                         help="batch_size of isf.plan (default: its default, "
                              f"{_common.default_batch_size()}; 1 = the paper's sequential loop)")
+    parser.add_argument("--workers", type=int, default=1,
+                        help="workers of isf.plan (default 1; N > 1 also lets the process use N "
+                             "CPUs)")
     parser.add_argument("--working-spacing", default="auto",
                         help="working_spacing of isf.plan: 'auto' (its default), a spacing in "
                              "metres, or 'none' (match against every object point)")
@@ -170,6 +175,9 @@ def main() -> None:
     base_samples = QUICK_BASE_SAMPLES if args.quick else BASE_SAMPLES
     if args.quick:
         args.repeats = min(args.repeats, 1)
+    if args.workers < 1 or (args.workers > 1 and args.batch_size > 1):
+        parser.error("--workers must be >= 1, and --batch-size 1 when it is more")
+    _common.use_cpus(args.workers)
     started = time.perf_counter()
     header = _common.machine_description()
     deadline = _common.Deadline(args.deadline)
@@ -191,7 +199,8 @@ def main() -> None:
     base_n, largest_n = loaded(BASE_SIZE)[0], loaded(max(sizes))[0]
     note = (f"Gripper `{GRIPPER}`, object: {OBJECT} scaled to a "
             f"{_common.PAPER_GRIPPER_MIDDLE_EXTENT * 1e3:g} mm middle extent, regret sampler, "
-            f"batch size {args.batch_size}, working_spacing {args.working_spacing}, "
+            f"batch size {args.batch_size}, {args.workers} worker thread(s) on as many CPUs, "
+            f"working_spacing {args.working_spacing}, "
             f"seeds 0..n-1, up to {args.repeats} runs per "
             f"configuration (budget "
             f"{args.budget:g} s). CPU time: process time around `isf.plan` (wall time minus "

@@ -7,16 +7,17 @@ gripper range": uniformly, so that the middle of its three bounding-box extents 
 paper gripper opens 10-30 mm), and is sampled to at most 2000 points (the paper's objects had
 740-3971 vertices). Sampler: the regret bandit with the paper's uniformly random orientations.
 
-Every object runs once per batch size of ``--batch-sizes`` (default: 8 samples in lockstep and
-1, the paper's strictly sequential loop and ``isf.plan``'s default, which serves as the
-reference for "results not worse"), seeds 0, 1, ... (the same seeds for every batch size). Reported per object and batch
-size: ``t_total`` (``PlanStats.total_time``), the process CPU time, the time per collision-free
+Every object runs once per mode of ``--modes`` (default ``8,w2,1``: 8 samples in lockstep in one
+thread; one sample at a time on two worker threads, ``isf.plan(..., workers=2)``, the process
+then allowed two CPUs; and 1, the paper's strictly sequential loop and ``isf.plan``'s default,
+which serves as the reference for "results not worse"), seeds 0, 1, ... (the same seeds for
+every mode). Reported per object and mode: ``t_total`` (``PlanStats.total_time``), the process CPU time, the time per collision-free
 grasp, the collision-free count and the mean fitting error of the collision-free grasps
 (``FitResult.mean_distance``); medians over ``--repeats`` runs cut by ``--budget`` seconds per
 configuration (at least one run), beside the paper's figures.
 
 Run from the repository root:
-    python bench/table1.py [--quick] [--repeats 5] [--batch-sizes 16,1] [--objects bunny,duck]
+    python bench/table1.py [--quick] [--repeats 5] [--modes 16,w2,1] [--objects bunny,duck]
 """
 
 from __future__ import annotations
@@ -46,13 +47,15 @@ def paper_sampler() -> RegretSampler:
     return RegretSampler(orientation="random")
 
 
-def measure(gripper, obj, samples: int, batch: int, args) -> dict:
+def measure(gripper, obj, samples: int, mode: _common.Mode, args) -> dict:
+    _common.use_cpus(mode.workers)
     runs, failed = _common.run_repeats(
-        lambda seed: _common.plan_once(gripper, obj, samples, seed, batch_size=batch,
-                                       sampler=paper_sampler(), repair_collisions=args.repair),
+        lambda seed: _common.plan_once(gripper, obj, samples, seed, batch_size=mode.batch_size,
+                                       workers=mode.workers, sampler=paper_sampler(),
+                                       repair_collisions=args.repair),
         args.repeats, _common.budget_or_none(args), catch=(isf.ISFError,))
     row = _common.median_row(runs, failed, args.repeats)
-    print(f"#   {obj.name}, batch {batch}: t_total (s) {_common.timing_cell(row)}, "
+    print(f"#   {obj.name}, {mode.label}: t_total (s) {_common.timing_cell(row)}, "
           f"{row.get('free', 0):g} collision-free", flush=True)
     return row
 
@@ -66,14 +69,14 @@ def _cell(row: dict | None, key: str, scale: float = 1.0, digits: int = 3) -> st
 
 
 def side_by_side(names, points, results, batches, samples: int) -> str:
-    """One row per object: each quantity for every batch size next to each other."""
-    ref = batches[-1]
+    """One row per object: each quantity for every mode next to each other."""
+    ref = batches[-1].label
     headers = ["object", "points"]
     for what in ("t_total (s)", "CPU (s)", "ms per collision-free", "collision-free",
                  "mean fit error of collision-free (mm)"):
-        headers += [f"{what}, B={b}" for b in batches]
-    headers += [f"t_total(B={ref}) / t_total(B={b})" for b in batches[:-1]]
-    headers += [f"CPU(B={ref}) / CPU(B={b})" for b in batches[:-1]]
+        headers += [f"{what}, {b.label}" for b in batches]
+    headers += [f"t_total({ref}) / t_total({b.label})" for b in batches[:-1]]
+    headers += [f"CPU({ref}) / CPU({b.label})" for b in batches[:-1]]
     body = []
     for name in names:
         rows = [results.get((name, b)) for b in batches]
@@ -97,13 +100,13 @@ def side_by_side(names, points, results, batches, samples: int) -> str:
 
 
 def average_row(names, results, batches, samples: int) -> list[str]:
-    """Means over the objects every batch size measured (so the columns compare like with like)."""
+    """Means over the objects every mode measured (so the columns compare like with like)."""
     common = [n for n in names if all(_ok(results.get((n, b))) for b in batches)]
     line = [f"**average (isf, {len(common)} objects)**", "-"]
     if not common:
         return line + ["-"] * (5 * len(batches) + 2 * (len(batches) - 1))
 
-    def mean(key: str, b: int) -> float:
+    def mean(key: str, b: _common.Mode) -> float:
         return float(np.nanmean([results[(n, b)][key] for n in common]))
 
     t = {b: mean("t_total", b) for b in batches}
@@ -120,22 +123,22 @@ def average_row(names, results, batches, samples: int) -> list[str]:
 
 
 def detail(names, results, batches, samples: int) -> str:
-    """One row per object and batch size: spread of t_total and the stage times."""
+    """One row per object and mode: spread of t_total and the stage times."""
     body = []
     for name in names:
         for b in batches:
             r = results.get((name, b))
             if not _ok(r):
-                body.append([name, b, "skipped (deadline)" if r is None else
+                body.append([name, b.label, "skipped (deadline)" if r is None else
                              _common.timing_cell(r)] + ["-"] * 6)
                 continue
-            body.append([name, b, _common.timing_cell(r), _common.fmt(r["cpu"]),
+            body.append([name, b.label, _common.timing_cell(r), _common.fmt(r["cpu"]),
                          f"{r['setup']:.3f} / {r['fit']:.3f} / {r['collision']:.3f}",
                          f"{r['free']:g}/{samples}", f"{r['valid']:g}",
                          _common.fmt(r["error"] * 1e3), f"{r['iterations']:.1f}"])
     return _common.markdown_table(
-        ["object", "batch size", "t_total (s), median (min-max, n)", "CPU (s)",
-         "set-up / ISF / collision (s)", "collision-free", "valid", "mean fit error (mm)",
+        ["object", "mode", "t_total (s), median (min-max, n)", "CPU (s)",
+         "set-up / ISF and repair / collision (s)", "collision-free", "valid", "mean fit error (mm)",
          "ISF iterations per sample"], body)
 
 
@@ -153,8 +156,9 @@ def main() -> None:
     parser.add_argument("--objects", default=None,
                         help="comma-separated benchmark names (default: "
                              + ",".join(DEFAULT_OBJECTS) + ")")
-    parser.add_argument("--batch-sizes", default=None,
-                        help="comma-separated batch sizes of isf.plan (default: 8,1); the LAST "
+    parser.add_argument("--modes", default="8,w2,1",
+                        help="comma-separated modes of isf.plan: a batch size (8: in lockstep, "
+                             "one thread) or wN (N worker threads); default 8,w2,1; the LAST "
                              "one is the reference the others are compared with")
     args = parser.parse_args()
     names = args.objects.split(",") if args.objects else list(DEFAULT_OBJECTS)
@@ -162,42 +166,42 @@ def main() -> None:
         names = list(QUICK_OBJECTS) if not args.objects else names[:1]
         args.samples, args.repeats = min(args.samples, QUICK_SAMPLES), min(args.repeats, 1)
     try:
-        batches = ([int(b) for b in args.batch_sizes.split(",")] if args.batch_sizes
-                   else [8, 1])
-    except ValueError:
-        parser.error(f"--batch-sizes must be comma-separated integers, got {args.batch_sizes!r}")
+        batches = [_common.Mode.parse(m) for m in args.modes.split(",")]
+    except ValueError as err:
+        parser.error(f"--modes: {err}")
     batches = list(dict.fromkeys(batches))
     started = time.perf_counter()
     header = _common.machine_description()
     deadline = _common.Deadline(args.deadline)
     gripper = isf.load_gripper(GRIPPER)
     results, points = {}, {}
-    for name in names:  # every batch size of an object before the next object
+    for name in names:  # every mode of an object before the next object
         obj = None
         for b in batches:
-            if not deadline.allows(f"{name} with batch size {b}"):
+            if not deadline.allows(f"{name} with {b.label}"):
                 continue
             if obj is None:
                 obj, _ = _common.scaled_benchmark_object(name, max_points=MAX_POINTS)
                 points[name] = obj.n_points
             results[(name, b)] = measure(gripper, obj, args.samples, b, args)
-    sequential = "B=1: the paper's sequential loop; " if 1 in batches else ""
+    sequential = "B=1: the paper's sequential loop; " if _common.Mode() in batches else ""
     repair = ("colliding fits repaired (isf.plan's default)" if args.repair
               else "no collision repair (the paper's Algorithm 3)")
     note = (f"Gripper `{GRIPPER}`, {args.samples} samples per object, regret sampler with random "
             f"orientations (the paper's), {repair}, objects scaled to a "
             f"{_common.PAPER_GRIPPER_MIDDLE_EXTENT * 1e3:g} mm middle extent and sampled to at "
-            f"most {MAX_POINTS} points; batch sizes {', '.join(map(str, batches))} "
-            f"({sequential}the last is the reference); seeds 0..n-1, up to "
-            f"{args.repeats} runs per object and batch size (budget {args.budget:g} s; n in the "
+            f"most {MAX_POINTS} points; modes {', '.join(b.label for b in batches)} "
+            f"(B: samples in lockstep in one thread, W: worker threads on as many CPUs; "
+            f"{sequential}the last is the reference); seeds 0..n-1, up to "
+            f"{args.repeats} runs per object and mode (budget {args.budget:g} s; n in the "
             "detail table). Medians over the runs; the average row is the mean of the objects' "
             "medians, and its time per collision-free grasp is mean t_total / mean count, as "
             "the paper's.")
     sections = ["### Table I: 60 samples per object", note,
                 side_by_side(names, points, results, batches, args.samples),
-                "**Detail** (per object and batch size):",
+                "**Detail** (per object and mode):",
                 detail(names, results, batches, args.samples), paper_rows(), *deadline.note(),
-                *_common.failure_notes([(f"{n}, batch {b}", r) for (n, b), r in results.items()])]
+                *_common.failure_notes([(f"{n}, {b.label}", r) for (n, b), r in results.items()])]
     _common.finish("table1: the paper's Table I, reproduced", sections, started, header, args.out)
 
 

@@ -50,7 +50,7 @@ def solve_box_qps(H: np.ndarray, c: np.ndarray, lower: np.ndarray, upper: np.nda
     return _solve_box_qps(*as_float, int(max_rounds), KKT_TOLERANCE)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _solve_box_qps(H, c, lower, upper, max_rounds, tolerance):
     """:func:`solve_box_qps`, compiled: each problem on its own."""
     n_problems, n = c.shape

@@ -171,7 +171,7 @@ class KinematicChain:
         )
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always")
 def _compose(A, B, out):
     """``out = A * B`` for poses stored as ``[R | p]`` (3, 4), summed as Eigen does in pin's
     build: rows 0-1 in SIMD pairs left to right, row 2 as a scalar reduction tree."""
@@ -182,7 +182,7 @@ def _compose(A, B, out):
         out[r, 3] += A[r, 3]
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always")
 def _local_pose(q, j, ints, reals, placements, M, L):
     """Pose ``[R | p]`` of joint ``j`` in its parent joint's frame at ``q`` (nq,) into ``L``
     (3, 4), as pin's ``jointPlacement * M(q)``; ``M`` (3, 4) is scratch."""
@@ -236,7 +236,7 @@ def _local_pose(q, j, ints, reals, placements, M, L):
     _compose(P, M, L)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _frame_kinematics(Q, frames, nv, ints, reals, placements, frame_joints, frame_placements):
     """Compiled body of :meth:`KinematicChain.frame_kinematics` (arguments as its attributes).
 

@@ -43,6 +43,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--batch-size", type=int, default=BATCH_SIZE, metavar="B",
                    help=f"samples fitted at once in lockstep (default {BATCH_SIZE}: the paper's sequential loop)")
+    p.add_argument("--workers", "-j", type=int, default=1, metavar="W",
+                   help="threads that fit, check and repair samples side by side (default 1); the "
+                        "sampler then learns each outcome up to W-1 samples late")
     p.add_argument("--units", choices=("m", "cm", "mm"), default="m", help="units of the object file (default m)")
     p.add_argument("--scale", type=float, default=1.0, help="extra scale factor for the object")
     p.add_argument("--table", type=float, default=None, metavar="Z",
@@ -126,6 +129,12 @@ def _cmd_plan(args: argparse.Namespace) -> int:
         raise InvalidInputError(f"output folder {out.parent} does not exist: create it or pass another --out")
     if args.top is not None and args.top < 1:
         raise InvalidInputError(f"--top must be >= 1, got {args.top}")
+    for flag, value in (("--batch-size", args.batch_size), ("--workers", args.workers)):
+        if value < 1:
+            raise InvalidInputError(f"{flag} must be >= 1, got {value}")
+    if args.batch_size > 1 and args.workers > 1:
+        raise InvalidInputError("--batch-size and --workers cannot both exceed 1: choose lockstep "
+                                "batches or worker threads")
     gripper = load_gripper(args.gripper)
     obj = open_object(args.object_spec, units=args.units, scale=args.scale)
     obstacles = [Plane.table(args.table)] if args.table is not None else []
@@ -134,7 +143,7 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     show = not args.quiet and sys.stderr.isatty()
     progress = _ProgressBar(sys.stderr) if show else None
     result = plan(gripper, obj, samples=args.samples, sampler=sampler, seed=args.seed,
-                  batch_size=args.batch_size,
+                  batch_size=args.batch_size, workers=args.workers,
                   obstacles=obstacles, progress=progress)
     if progress:
         progress.close()

@@ -106,7 +106,7 @@ _CLEARANCE_EXACT = 3  # of the clearance candidates, how many get the exact dist
 _REVERSE_PROBES = 4  # object samples whose distance to the nearest-looking elements is measured
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _rigid(T):
     """Is the finite 4x4 ``T`` a rigid transform: rotation orthonormal to 1e-6, last row
     ``[0 0 0 1]`` to 1e-12?"""

@@ -46,7 +46,7 @@ def even_samples(mesh: trimesh.Trimesh, spacing: float, max_points: int,
     return points, mesh.face_normals[face]
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _segment_distance2(px, py, pz, ax, ay, az, bx, by, bz):
     """Squared distance from ``p`` to the segment ``ab``."""
     dx, dy, dz = bx - ax, by - ay, bz - az
@@ -55,7 +55,7 @@ def _segment_distance2(px, py, pz, ax, ay, az, bx, by, bz):
     return (px - ax - s * dx) ** 2 + (py - ay - s * dy) ** 2 + (pz - az - s * dz) ** 2
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def triangle_distance2(px, py, pz, tri, f):
     """Squared distance from ``p`` to triangle ``tri[f]`` ((F, 3, 3) corners): the nearest point
     by the triangle's Voronoi regions (Ericson, Real-Time Collision Detection, 5.1.5); a
@@ -80,7 +80,7 @@ def triangle_distance2(px, py, pz, tri, f):
                _segment_distance2(px, py, pz, cx, cy, cz, ax, ay, az))
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _nearest_triangle_distances(points, triangles):
     out = np.empty(len(points))
     for i in range(len(points)):
@@ -119,7 +119,7 @@ def patches(samples: np.ndarray, area: float, count: int) -> tuple[np.ndarray, n
     return centres, nearest
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _above(x, y, z, planes):
     """Largest signed distance of ``(x, y, z)`` to the planes ``[n, n . x]`` (F, 4); -inf for none."""
     sd = -np.inf
@@ -128,7 +128,7 @@ def _above(x, y, z, planes):
     return sd
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _node_value(values, lo, h, x, y, z):
     """``values`` (grid with corner ``lo``, spacing ``h``) at the node nearest ``(x, y, z)``; inf
     off the grid."""
@@ -140,7 +140,7 @@ def _node_value(values, lo, h, x, y, z):
     return np.inf
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _in_box(points, i, pose, bounds):
     """Point ``i`` of ``points`` (M, 3) in the frame ``pose`` (4, 4) places, and whether it lies
     in the box ``bounds`` (2, 3) there."""
@@ -153,7 +153,7 @@ def _in_box(points, i, pose, bounds):
     return a, b, c, inside
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def convex_depth(points, pose, bounds, planes):
     """Deepest of the object points (M, 3), object frame, inside a convex element posed at
     ``pose`` (4, 4) with link-frame box ``bounds`` (2, 3) and face planes ``planes`` (F, 4) as
@@ -166,7 +166,7 @@ def convex_depth(points, pose, bounds, planes):
     return max(0.0, -low)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def non_convex_depth(points, pose, bounds, tolerance, hull_planes, field, field_lo, field_h,
                      surface_points, surface_normals, tree, neighbours):
     """Deepest of the object points (M, 3), object frame, inside a closed non-convex element

@@ -37,7 +37,7 @@ VOXEL_MARGIN = 2e-3  # a box this far inside voxels outside a mesh object is out
 ROUNDS = 3  # refinement rounds at most
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _transform(poses, e, x, y, z):
     """Point ``(x, y, z)`` of element ``e``'s frame in the object frame."""
     return (poses[e, 0, 0] * x + poses[e, 0, 1] * y + poses[e, 0, 2] * z + poses[e, 0, 3],
@@ -45,7 +45,7 @@ def _transform(poses, e, x, y, z):
             poses[e, 2, 0] * x + poses[e, 2, 1] * y + poses[e, 2, 2] * z + poses[e, 2, 3])
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _estimate_at(x, y, z, surface, search):
     """:func:`isf.collision_surface.estimate` of the object's surface at ``(x, y, z)``."""
     tree = surface[2]
@@ -53,7 +53,7 @@ def _estimate_at(x, y, z, surface, search):
                     tree[3], tree[4], tree[5], tree[6], tree[7], search[2], search[3], search[4])
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _planes_and_spheres(poses, obstacles, elements, surface, voxels, search):
     """The obstacle planes' depths and clearance, and which elements need their samples tested.
 
@@ -117,7 +117,7 @@ def _planes_and_spheres(poses, obstacles, elements, surface, voxels, search):
     return depth, where, clearance, deep, apart, clearance_bound, elo, ehi, estimates
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _patch_centres(poses, act, deep, apart, clearance_bound, elements, patches, surface, voxels, search):
     """The patches of the active elements ``act`` (A,) and their centres' estimates.
 
@@ -189,7 +189,7 @@ def _patch_centres(poses, act, deep, apart, clearance_bound, elements, patches, 
     return patch, pk, need, outside_patch, sd, plane, nearest, foot, estimates
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _rows(poses, tolerance, act, deep, apart, patch, pk, need, outside_patch, sd, plane, nearest,
           elements, patches, surface):
     """The rows: the samples of the opened patches with their first-order predictions and
@@ -269,7 +269,7 @@ def _rows(poses, tolerance, act, deep, apart, patch, pk, need, outside_patch, sd
     return row, rp, pred, lo, hi, seg, last_row
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _evaluate_row(r, e, poses, row, pred, lo, hi, samples, surface, search):
     """Evaluate row ``r`` (of element ``e``) exactly."""
     s = row[r]
@@ -277,7 +277,7 @@ def _evaluate_row(r, e, poses, row, pred, lo, hi, samples, surface, search):
     pred[r] = lo[r] = hi[r] = _estimate_at(x, y, z, surface, search)[0]
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _offer(top, n, r, pred):
     """Offer row ``r`` to ``top[:n]``, the rows with the lowest ``pred`` so far in order (ties: the
     earlier row), at most ``len(top)``; returns the new count."""
@@ -291,7 +291,7 @@ def _offer(top, n, r, pred):
     return min(n + 1, len(top))
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _refine(poses, tolerance, plane_depth, clearance, act, deep, outside_patch, row, pred, lo, hi, seg,
             elements, patches, surface, search):
     """Evaluate exactly the rows that can change a verdict, the deepest value, whether a
@@ -369,7 +369,7 @@ def _refine(poses, tolerance, plane_depth, clearance, act, deep, outside_patch, 
     return estimates, deepest
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _object_depth(poses, e, box_lo, box_hi, tolerance, elements, probes, interiors, scratch):
     """Deepest object point inside closed element ``e`` (0 for an open one), metres, by
     :func:`isf.collision_elements.convex_depth` or :func:`isf.collision_elements.non_convex_depth`
@@ -403,7 +403,7 @@ def _object_depth(poses, e, box_lo, box_hi, tolerance, elements, probes, interio
                             inner_points[a:b], inner_normals[a:b], tree, min(NEIGHBOURS, b - a))
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _object_depths(poses, tolerance, act, deep, outside_patch, pred, lo, hi, seg, last_row, deepest, depth,
                    where, clearance, box_lo, box_hi, elements, probes, interiors, obstacle):
     """Each deep element's depth into the object: that of its deepest evaluated row or object
@@ -433,7 +433,7 @@ def _object_depths(poses, tolerance, act, deep, outside_patch, pred, lo, hi, seg
     return clearance
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _clearance_candidates(poses, act, apart, row, rp, pk, foot, samples, surface, search):
     """The :data:`CLEARANCE_CANDIDATES` rows of apart elements nearest the object point nearest
     their patch centre (ties: the earlier row): positions (C, 3), elements (C,) and distances to
@@ -468,7 +468,7 @@ def _clearance_candidates(poses, act, apart, row, rp, pk, foot, samples, surface
     return candidates, owner, nearest
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def reverse_clearance(measured, candidates, owner, poses, triangles, triangle_start, points, tree, probes):
     """The clearance from clearance candidates ``candidates`` (C, 3) of elements ``owner`` (C,)
     with their measured distances to the object ``measured`` (C,), m: the least of those and
@@ -505,7 +505,7 @@ def reverse_clearance(measured, candidates, owner, poses, triangles, triangle_st
     return max(best, 0.0)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def check_elements(T, link_R, link_p, tolerance, obstacles, elements, patches, surface, probes, voxels,
                    interiors):
     """One check of the elements at palm pose ``T`` (4, 4), their links at rotations ``link_R``

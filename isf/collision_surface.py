@@ -19,7 +19,7 @@ from .nearest import NearestPoints, search_scratch
 NEIGHBOURS = 6  # tangent planes of the nearest surface points a point must lie below to be inside
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def estimate(x, y, z, best_d2, best, points, normals, tree_points, order, start, stop, axis, split, left,
              right, stack_node, stack_bound, stack_offset):
     """The signed distance estimate at ``(x, y, z)``: ``(height, plane, distance, nearest)``: the
@@ -39,7 +39,7 @@ def estimate(x, y, z, best_d2, best, points, normals, tree_points, order, start,
     return height, plane, np.sqrt(best_d2[0]), best[0]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _evaluate(query, points, normals, tree, k):
     """:func:`estimate` with ``k`` neighbours of each query point (M, 3): four (M,) arrays."""
     m = len(query)

@@ -25,7 +25,7 @@ MIN_VOXEL = 0.001  # m
 MAX_VOXELS = 1 << 17  # the voxel grows beyond MIN_VOXEL to keep the grid this small
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _blocked(vertices, faces, lo, size, shape):
     """Voxels (shape) overlapped by the bounding box of some triangle (vertices (V, 3), faces
     (F, 3)); a box touching a voxel's face counts as overlapping it."""
@@ -44,7 +44,7 @@ def _blocked(vertices, faces, lo, size, shape):
     return blocked
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _not_outside(blocked):
     """Voxels that no face-adjacent path of unblocked voxels joins to the grid's border."""
     nx, ny, nz = blocked.shape
@@ -85,7 +85,7 @@ def _not_outside(blocked):
     return ~reached
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _steps(blocked):
     """Chebyshev distance of every voxel to the nearest blocked one, in voxels (int32); the
     grid's size in voxels when none is blocked."""
@@ -114,14 +114,14 @@ def _steps(blocked):
     return steps
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _cell(p, lo, size, n):
     """The voxel (of ``n``) nearest coordinate ``p`` and the squared distance to the grid's span."""
     g = min(max(p, lo), lo + n * size)
     return min(max(int(np.floor((g - lo) / size)), 0), n - 1), (p - g) ** 2
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def distance_below(steps, lo, size, x, y, z):
     """A lower bound of the distance of point ``(x, y, z)`` to the blocked voxels (Chebyshev
     ``steps``, grid corner ``lo``, voxel edge ``size``), metres."""
@@ -132,7 +132,7 @@ def distance_below(steps, lo, size, x, y, z):
     return np.sqrt(da + db + dc + inner * inner)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _distance_below(steps, lo, size, points):
     """:func:`distance_below` of points (M, 3), metres (M,)."""
     out = np.empty(len(points))
@@ -141,13 +141,13 @@ def _distance_below(steps, lo, size, points):
     return out
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _span(a, b, lo, size, n):
     """The voxels ``[first, last)`` (of ``n``) that the interval ``[a, b]`` overlaps."""
     return max(int(np.floor((a - lo) / size)), 0), min(int(np.floor((b - lo) / size)), n - 1) + 1
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def box_clear(table, lo, size, lo_x, lo_y, lo_z, hi_x, hi_y, hi_z):
     """Does the box ``[lo_*, hi_*]`` overlap no voxel counted in the summed-volume ``table``
     (grid corner ``lo``, voxel edge ``size``)?"""
@@ -161,7 +161,7 @@ def box_clear(table, lo, size, lo_x, lo_y, lo_z, hi_x, hi_y, hi_z):
     return count == 0
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _clear(table, lo, size, box_lo, box_hi):
     """:func:`box_clear` of boxes (M, 3 corners), (M,) bool."""
     out = np.empty(len(box_lo), np.bool_)

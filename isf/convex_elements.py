@@ -48,7 +48,7 @@ class ConvexRows(NamedTuple):
     point: np.ndarray
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _spread(directions, count):
     """Indices (at most ``count``) of rows of ``directions`` (N, 3) in farthest-point order."""
     n = len(directions)
@@ -67,7 +67,7 @@ def _spread(directions, count):
     return chosen
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _distance(points, i, j):
     """Distance between rows ``i`` and ``j`` of ``points`` (N, 3)."""
     return np.sqrt((points[i, 0] - points[j, 0]) ** 2 + (points[i, 1] - points[j, 1]) ** 2
@@ -155,7 +155,7 @@ class ConvexElements:
                                  self._plane_start, float(reach), int(keep)))
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _rows(points, order, start, lo, cell, shape, R_links, origins, centres, radii, extents, floors,
           planes, plane_start, reach, keep):
     """:meth:`ConvexElements.rows`, compiled: (element (K,), foot (K, 3), normal (K, 3), depth
@@ -249,7 +249,7 @@ def _rows(points, order, start, lo, cell, shape, R_links, origins, centres, radi
             depth[:count].copy(), point[:count].copy())
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _deepest_face(local, planes, first, last, limit, floor, cut):
     """The face plane (rows ``first:last`` of ``planes``) a point ``local`` (3,) lies highest
     above and that height, ``(height, face)``; or, when the point is out by ``limit`` or more
@@ -266,7 +266,7 @@ def _deepest_face(local, planes, first, last, limit, floor, cut):
     return best, face
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _grow(values, capacity):
     """``values`` copied into a longer array of ``capacity`` rows."""
     out = np.empty((capacity,) + values.shape[1:], values.dtype)

@@ -82,7 +82,7 @@ def match_many(
     return Correspondences(source, target[source], dist[source])
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _filter_pairs(dist, target, group_starts, fit_starts, outlier_factor, outlier_floor, compatible,
                   reject_duplicates):
     """The pairs :func:`match_many` keeps, a mask (M,): within the outlier threshold of their
@@ -104,7 +104,7 @@ def _filter_pairs(dist, target, group_starts, fit_starts, outlier_factor, outlie
     return keep
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def keep_inliers(dist, a, b, outlier_factor, outlier_floor, compatible, keep, ranked):
     """``keep[a:b]``: the rows of one outlier group within ``max(outlier_factor * median,
     outlier_floor)`` of their match that are ``compatible``. ``ranked``: scratch of >= b - a."""
@@ -117,7 +117,7 @@ def keep_inliers(dist, a, b, outlier_factor, outlier_floor, compatible, keep, ra
         keep[i] = dist[i] <= threshold and compatible[i]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def reject_duplicate_targets(dist, target, a, b, keep, best_row, stamp, tag):
     """Among the kept rows ``a .. b - 1`` of one fit that share a target, keep only the nearest
     (the first of equally near ones). ``best_row``, ``stamp``: scratch with one entry per object

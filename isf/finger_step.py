@@ -160,7 +160,7 @@ def solve_uncertified(dq: np.ndarray, exact: np.ndarray, AtA: np.ndarray, Atb: n
     return failed
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def bounded_steps(AtA, Atb, lower, upper, damping, max_rounds, kkt_tolerance):
     """The finger steps of B fits without OSQP: ``dq`` (B, n) and which are exact (B,) (the
     one-joint closed form always is; the active set where it is certified).

@@ -17,6 +17,7 @@ Joint vector ``q``
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import NamedTuple
@@ -129,12 +130,12 @@ class Gripper:
     urdf_path: Path | None = None
     palm_link: str | None = None
     approach: np.ndarray | None = None
-    _data: pin.Data = field(init=False, repr=False)
+    _local: threading.local = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         if self.model.nq != self.model.nv:
             raise ValueError("isf supports revolute and prismatic joints only (nq must equal nv)")
-        self._data = self.model.createData()
+        self._local = threading.local()  # Pinocchio's Data per thread: see _pin_data
         # Compiled kinematics for frame_kinematics_many; None keeps the Pinocchio loop.
         self._chain = KinematicChain.from_model(self.model)
         self.q_initial = np.asarray(self.q_initial, dtype=float).copy()
@@ -211,13 +212,22 @@ class Gripper:
         return np.clip(np.asarray(q, dtype=float), self.lower, self.upper)
 
     # ------------------------------------------------------------- kinematics
+    def _pin_data(self) -> pin.Data:
+        """This thread's Pinocchio ``Data`` (Pinocchio writes its results into it, so threads
+        planning with one gripper each need their own)."""
+        data = getattr(self._local, "data", None)
+        if data is None:
+            data = self._local.data = self.model.createData()
+        return data
+
     def link_poses(self, q: np.ndarray) -> dict[str, np.ndarray]:
         """Pose of every link in the gripper frame, ``T_gripper_link``, each (4, 4)."""
-        pin.framesForwardKinematics(self.model, self._data, np.asarray(q, dtype=float))
+        data = self._pin_data()
+        pin.framesForwardKinematics(self.model, data, np.asarray(q, dtype=float))
         poses = {}
         for fid, frame in enumerate(self.model.frames):
             if frame.type == pin.FrameType.BODY:
-                poses[frame.name] = self._data.oMf[fid].homogeneous.copy()
+                poses[frame.name] = data.oMf[fid].homogeneous.copy()
         return poses
 
     def link_kinematics(self, q: np.ndarray) -> LinkKinematics:
@@ -235,7 +245,7 @@ class Gripper:
 
         One compiled call (:mod:`isf.chain`) when the model's joints allow it, else a loop
         of Pinocchio calls; both give Pinocchio's LOCAL_WORLD_ALIGNED frame Jacobians."""
-        model, data = self.model, self._data
+        model, data = self.model, self._pin_data()
         Q = np.asarray(Q, dtype=float)
         Q = Q.reshape(len(Q) if Q.ndim == 2 else 1, model.nq)  # (-1, 0) cannot be inferred
         if self._chain is not None:

@@ -28,7 +28,7 @@ __all__ = ["DONE", "NEED_FINGER_STEP", "NEED_KINEMATICS", "alternate", "resume"]
 DONE, NEED_FINGER_STEP, NEED_KINEMATICS = 0, 1, 2
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def alternate(T, q, R, p, Jv, Jw, error, active, log, n_log,
               origin, fit_count, M, N, v, beta2, w, s, count,
               alpha, max_rotation, threshold, max_iterations, move_fingers,
@@ -118,7 +118,7 @@ def alternate(T, q, R, p, Jv, Jw, error, active, log, n_log,
     return DONE, max_iterations, empty3, empty2, empty2, empty2, empty2, none, q, none
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def resume(state, moments, params, start, use_dq, dq_given, use_links, R_given, p_given, Jv_given, Jw_given):
     """:func:`alternate` on its arguments grouped: ``state`` = ``(T, q, R, p, Jv, Jw, error,
     active, log, n_log)``, ``moments`` = the moments and ``threshold``, ``params`` =

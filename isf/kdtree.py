@@ -25,7 +25,7 @@ STACK_SIZE = 128
 """Depth of a search's stack of pending cells (a tree of 2**64 points needs less)."""
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def build(points, leaf_size):
     """The tree of ``points`` (N, 3): ``order`` (N,) (the points of a node are
     ``order[start:stop]``) and per node ``start``, ``stop``, ``axis`` (-1 for a leaf), ``split``,
@@ -78,7 +78,7 @@ def build(points, leaf_size):
             split[:n_nodes].copy(), left, right)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _descend(node, bound, ox, oy, oz, x, y, z, limit, axis, split, left, right,
              stack_node, stack_bound, stack_offset, top):
     """From ``node`` (squared cell distance ``bound``, query offsets ``ox, oy, oz`` from its cell)
@@ -100,7 +100,7 @@ def _descend(node, bound, ox, oy, oz, x, y, z, limit, axis, split, left, right,
     return node, top
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def nearest(x, y, z, best, best_d2, tree_points, order, start, stop, axis, split, left, right,
             stack_node, stack_bound, stack_offset):
     """The nearest point to ``(x, y, z)``: ``(index, squared distance)``.
@@ -131,7 +131,7 @@ def nearest(x, y, z, best, best_d2, tree_points, order, start, stop, axis, split
     return best, best_d2
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def insert(d2, p, best_d2, best):
     """Insert point ``p`` at squared distance ``d2`` into the sorted list ``best_d2``, ``best``
     (k,) (by distance, then index), dropping its last entry; the caller has checked that
@@ -143,7 +143,7 @@ def insert(d2, p, best_d2, best):
     best_d2[j], best[j] = d2, p
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def k_nearest(x, y, z, best_d2, best, tree_points, order, start, stop, axis, split, left, right,
               stack_node, stack_bound, stack_offset):
     """The ``k`` nearest points to ``(x, y, z)``, written into ``best_d2``, ``best`` (k,): squared

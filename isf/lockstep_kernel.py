@@ -58,7 +58,7 @@ _CACHE_SLACK = 1e-9
 (far beyond the rounding of the distances)."""
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def cached_nearest(x, y, z, g, x0, radius, candidates, valid, obj_points):
     """The nearest object point to contact point ``g`` at ``(x, y, z)`` from its cache ``x0``
     (P, 3), ``radius`` (P,), ``candidates`` (P, K), ``valid`` (P,) (see the module docstring):
@@ -80,7 +80,7 @@ def cached_nearest(x, y, z, g, x0, radius, candidates, valid, obj_points):
     return -1, np.inf, False
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def refill(x, y, z, g, x0, radius, candidates, valid, tree, scratch, best_d2, best):
     """Search the tree for the :data:`CANDIDATES` nearest object points of contact point ``g``
     at ``(x, y, z)``, store them in its cache, and return the nearest: ``(index, squared
@@ -95,13 +95,13 @@ def refill(x, y, z, g, x0, radius, candidates, valid, tree, scratch, best_d2, be
     return best[0], best_d2[0]
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _dot(a, i, b, j):
     """``a[i] . b[j]`` of two (., 3) arrays, summed in coordinate order."""
     return a[i, 0] * b[j, 0] + a[i, 1] * b[j, 1] + a[i, 2] * b[j, 2]
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _plane_distance(points, i, targets, normals, j):
     """``(points[i] - targets[j]) . normals[j]``: a point's signed distance from a tangent plane."""
     return ((points[i, 0] - targets[j, 0]) * normals[j, 0]
@@ -109,7 +109,7 @@ def _plane_distance(points, i, targets, normals, j):
             + (points[i, 2] - targets[j, 2]) * normals[j, 2])
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _match(points, normals, rows, count, grip, obj, fit_params, x0, radius, candidates, valid,
            dist, target, keep, work):
     """Match and filter the contact points ``rows[:count]`` (gripper point indices) at object-frame
@@ -150,7 +150,7 @@ def _match(points, normals, rows, count, grip, obj, fit_params, x0, radius, cand
     return kept
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _work(n_points, n_object):
     """Scratch of ``_match`` for up to ``n_points`` contact points: the tree's stack, the
     cache's refill lists, a sort buffer, the duplicate filter's per-object-point arrays
@@ -161,7 +161,7 @@ def _work(n_points, n_object):
             np.empty(n_points), np.empty(n_object, np.int64), stamp, np.empty(n_points, np.bool_))
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _place_points(T, R, p, rows, count, grip, points, normals):
     """Object-frame positions and normals of gripper points ``rows[:count]`` of a fit at palm
     pose ``T`` (4, 4) and contact-link poses ``R`` (L, 3, 3), ``p`` (L, 3), into ``points``,
@@ -174,7 +174,7 @@ def _place_points(T, R, p, rows, count, grip, points, normals):
         place(A, a, point_link[g], points_link, normals_link, g, points, normals, i)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def enter_level(b, level, slots, grip, fit_params):
     """Start pyramid level ``level`` for slot ``b``: its contact points at the slot's state, the
     level's start positions, and a fresh stop rule."""
@@ -187,7 +187,7 @@ def enter_level(b, level, slots, grip, fit_params):
     start[b, :count] = current[b, :count]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _empty_round(n, n_links, n_ipfo):
     """A round's data with no fits (see :func:`run`), of the types a real round has."""
     return ((np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)),
@@ -201,7 +201,7 @@ def _empty_round(n, n_links, n_ipfo):
              np.zeros(0), np.zeros((0, 9)), np.zeros((0, 4)), np.zeros(0), np.zeros(0)))
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _prepare(slots, grip, obj, fit_params, ipfo_params, work, n_links):
     """Step 1 of a round for every running slot (see the module docstring): the round's data.
 
@@ -275,7 +275,7 @@ def _prepare(slots, grip, obj, fit_params, ipfo_params, work, n_links):
     return pairs, state, (origin, fit_count, M, N, v, beta2, w, s, count_g, threshold)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def finish_round(slots, history, grip, fit_params, pairs, state):
     """Step 3 of a round (see the module docstring), after IPFO has run on ``state``: the fits'
     new states, history records, stop rules and level changes. Returns how many fits ended."""
@@ -322,7 +322,7 @@ def finish_round(slots, history, grip, fit_params, pairs, state):
     return ended
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def run(slots, history, grip, obj, fit_params, ipfo_params, max_rounds):
     """Rounds of every running slot until one ends, IPFO needs Python, or ``max_rounds`` passed.
 
@@ -378,7 +378,7 @@ def run(slots, history, grip, obj, fit_params, ipfo_params, max_rounds):
     return ROUNDS, max_rounds, pairs, state, moments, reply
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def score_state(T, R, p, grip, obj, fit_params, alpha, x0, radius, candidates, valid):
     """The final scores of a fit at palm pose ``T`` (4, 4) and contact-link poses ``R``
     (L, 3, 3), ``p`` (L, 3): every contact point matched afresh (through the cache ``x0``,

@@ -17,7 +17,7 @@ __all__ = ["fit_errors", "finger_systems", "group_moments", "link_poses", "palm_
            "palm_systems", "palm_updates", "place", "points_in_object", "solve_small"]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def group_moments(fit, link, points_link, normals_link, targets, target_normals, n_fits, n_links):
     """Per-group moments of matched pairs.
 
@@ -87,7 +87,7 @@ def group_moments(fit, link, points_link, normals_link, targets, target_normals,
     return origin, fit_count, M, N, v, beta2, w, s, count
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def link_poses(T, rotations, positions, A, a):
     """Every contact link's pose in the object frame, in place: ``A[l] = R_palm R_link`` (L, 3, 3)
     and the origins ``a[l]`` (L, 3), for one fit (``T`` (4, 4), ``rotations`` (L, 3, 3),
@@ -97,7 +97,7 @@ def link_poses(T, rotations, positions, A, a):
         _group_pose(T, rotations[l], positions[l], no_origin, A[l], a[l])
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _group_pose(T, rotation, position, origin, A, a):
     """``A = R_palm R_link`` (3, 3) and the link origin ``a`` (3,) relative to ``origin``, in place."""
     for i in range(3):
@@ -106,7 +106,7 @@ def _group_pose(T, rotation, position, origin, A, a):
         a[i] = T[i, 0] * position[0] + T[i, 1] * position[1] + T[i, 2] * position[2] + T[i, 3] - origin[i]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _vec_pose(A, a, P):
     """``P = vec([A | a]^T)`` (12,), in place: ``P[3 i + j] = A[j, i]`` and ``P[9 + j] = a[j]``."""
     for i in range(3):
@@ -115,7 +115,7 @@ def _vec_pose(A, a, P):
         P[9 + i] = a[i]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _residual(M, v, P, out):
     """``out = v - M P`` (12,), in place."""
     for i in range(12):
@@ -125,7 +125,7 @@ def _residual(M, v, P, out):
         out[i] = acc
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _add_sandwich(X, M, rows, cols, weight, out, XM):
     """``out += weight * X[:, :cols] M[:cols, :cols] X[:, :cols]^T`` for ``X`` (rows, >= cols)."""
     for i in range(rows):
@@ -142,7 +142,7 @@ def _add_sandwich(X, M, rows, cols, weight, out, XM):
             out[i, j] += weight * acc
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _normal_residual(N, P, w, out):
     """``out = N P[:9] + w`` (9,), in place."""
     for i in range(9):
@@ -152,7 +152,7 @@ def _normal_residual(N, P, w, out):
         out[i] = acc
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def fit_errors(T, rotations, positions, origin, M, N, v, beta2, w, count, alpha2):
     """``E = E_p + alpha^2 E_n`` of each fit, (B,), m^2.
 
@@ -189,7 +189,7 @@ def fit_errors(T, rotations, positions, origin, M, N, v, beta2, w, count, alpha2
     return E
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _palm_system(b, T, rotations, positions, origin, fit_count, M, N, v, w, s, count, alpha2,
                  H, grad, centre):
     """Palm normal equations of fit ``b`` about its contact centroid, into ``H`` (6, 6),
@@ -241,7 +241,7 @@ def _palm_system(b, T, rotations, positions, origin, fit_count, M, N, v, w, s, c
                 grad[i] -= alpha2 * acc
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def palm_systems(T, rotations, positions, origin, fit_count, M, N, v, w, s, count, alpha2):
     """Palm normal equations of every fit: ``H`` (B, 6, 6), ``g`` (B, 6) for the twist
     ``[r, u]`` about each fit's contact centroid, and the centroids (B, 3), object frame."""
@@ -255,7 +255,7 @@ def palm_systems(T, rotations, positions, origin, fit_count, M, N, v, w, s, coun
     return H, grad, centre
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def solve_small(H, rhs, x):
     """Solve ``H x = rhs`` for a small square ``H`` (n, n) into ``x`` (n,): Gaussian elimination
     with partial pivoting (LAPACK's ``gesv`` method), on copies."""
@@ -283,7 +283,7 @@ def solve_small(H, rhs, x):
         x[i] = acc / LU[i, i]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def palm_motion(H, grad, centre, max_rotation, out):
     """Solve ``H x = grad`` (6, 6), (6,) for the twist ``x = [r, u]`` about ``centre`` (3,) and
     write its motion ``T_delta`` (4, 4) into ``out``; a rotation beyond ``max_rotation``
@@ -322,7 +322,7 @@ def palm_motion(H, grad, centre, max_rotation, out):
     out[3, 3] = 1.0
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def palm_motions(H, grad, centre, max_rotation):
     """:func:`palm_motion` of B systems ``H`` (B, 6, 6), ``grad`` (B, 6) about ``centre`` (B, 3):
     the motions (B, 4, 4)."""
@@ -332,7 +332,7 @@ def palm_motions(H, grad, centre, max_rotation):
     return out
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def palm_updates(T, rotations, positions, origin, fit_count, M, N, v, w, s, count, alpha2, max_rotation):
     """One palm step of every fit: ``T_delta @ T`` with ``T_delta`` from :func:`palm_motion`
     of the fit's palm normal equations, (B, 4, 4)."""
@@ -352,7 +352,7 @@ def palm_updates(T, rotations, positions, origin, fit_count, M, N, v, w, s, coun
     return out
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def finger_systems(T, rotations, positions, J_linear, J_angular, origin, M, N, v, w, count, alpha):
     """Normal equations of every fit's finger least squares: ``A^T A`` (B, n, n), ``A^T b`` (B, n).
 
@@ -405,7 +405,7 @@ def finger_systems(T, rotations, positions, J_linear, J_angular, origin, M, N, v
     return AtA, Atb
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def points_in_object(T, rotations, positions, fit, link, points_link, normals_link):
     """Gripper points and normals moved into the object frame: point ``i`` (on contact link
     ``link[i]`` of fit ``fit[i]``) at ``A_g x_i + a_g``, its normal ``A_g nu_i``.
@@ -430,7 +430,7 @@ def points_in_object(T, rotations, positions, fit, link, points_link, normals_li
     return points, normals
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def place(A, a, l, x, nu, k, points, normals, i):
     """``points[i] = A[l] x[k] + a[l]`` and ``normals[i] = A[l] nu[k]``, in place: link-frame point
     and normal ``k`` moved by the pose ``A[l]`` (3, 3), ``a[l]`` (3,) of its link in the object

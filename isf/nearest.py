@@ -24,14 +24,14 @@ from . import kdtree
 __all__ = ["NearestPoints", "nearest_point", "search_scratch"]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def search_scratch():
     """The scratch arrays of a tree search (:data:`isf.kdtree.STACK_SIZE` rows)."""
     size = kdtree.STACK_SIZE
     return np.empty(size, np.int64), np.empty(size), np.empty((size, 3))
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def nearest_point(x, y, z, guess, points, tree, scratch):
     """The nearest point to ``(x, y, z)``: ``(index, squared distance)``, exact.
 
@@ -48,19 +48,22 @@ def nearest_point(x, y, z, guess, points, tree, scratch):
                           tree[6], tree[7], scratch[0], scratch[1], scratch[2])
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _query(queries, guess, points, tree):
     """:func:`nearest_point` of each query (M, 3) with its guess (M,): distances (M,), indices (M,)."""
     m = len(queries)
     distance, index = np.empty(m), np.empty(m, np.int64)
     scratch = search_scratch()
     for q in range(m):
-        index[q], d2 = nearest_point(queries[q, 0], queries[q, 1], queries[q, 2], guess[q], points, tree, scratch)
+        start = guess[q]
+        if start < 0 and q > 0:  # the previous query's answer: queries often come in runs
+            start = index[q - 1]
+        index[q], d2 = nearest_point(queries[q, 0], queries[q, 1], queries[q, 2], start, points, tree, scratch)
         distance[q] = np.sqrt(d2)
     return distance, index
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _query_k(queries, k, tree):
     """The k nearest points of each query (M, 3) (:func:`isf.kdtree.k_nearest`): distances
     (M, k), indices (M, k)."""
@@ -100,6 +103,8 @@ class NearestPoints:
             queries: query points, (M, 3).
             guess: optional candidate index per query (M,) (-1 for none), e.g. the answer of a
                 previous query from nearby; it speeds the search and never changes its answer.
+                A query without one starts from the previous query's answer (queries often
+                come in runs of neighbours, such as samples along a surface).
 
         Returns:
             distances (M,) and indices (M,) into ``points``; among equally near points the

@@ -71,6 +71,7 @@ def plan_to_dict(result: PlanResult, *, top: int | None = None) -> dict:
             "setup_time": s.setup_time,
             "batch_size": s.batch_size,
             "surface_points": s.surface_points,
+            "workers": s.workers,
         },
         "config": result.config.to_dict(),
     }

@@ -15,6 +15,14 @@ proposal straight away, so the sampler learns from every outcome with a delay of
 rounds are compiled (:mod:`isf.lockstep_kernel`), so a batch no longer saves time; it is
 there for samplers that propose in batches.
 
+With ``workers = W > 1`` the samples run on W threads (the compiled fitting, checking and
+repair release Python's GIL, so the threads share the cores): each thread fits, checks and
+repairs one sample at a time (:class:`isf.evaluation.SampleWorker`). Samples are proposed in
+order with at most W in flight, and their outcomes are reported to the sampler in order, so
+sample ``i + W`` is proposed once sample ``i`` is observed: the sampler learns every outcome at
+most ``W - 1`` samples late, and the plan depends on W and the seed but not on the threads'
+timing. Each fit is the fit it would be alone.
+
 A fitted grasp that collides is repaired once (``repair_collisions``, on by default;
 :mod:`isf.clearance`): the links that penetrate are pushed out while the contact surfaces
 are pulled back onto the object, and the repaired grasp replaces the fit when the re-check
@@ -27,16 +35,19 @@ touches the object, then by mean point-to-plane distance (lower first).
 
 from __future__ import annotations
 
+import queue
 import time
+from collections import deque
 from collections.abc import Callable, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from .clearance import ClearanceRepair, repair_penetration
-from .collision import CollisionChecker, CollisionReport, Plane
+from .collision import CollisionReport, Plane
 from .config import FitConfig
+from .evaluation import SampleJudge, SampleWorker
 from .gripper import Gripper
 from .lockstep import LockstepFitter
 from .object_surface import ObjectSurface
@@ -111,12 +122,14 @@ class PlanStats:
         valid: collision-free grasps whose every contact surface touches the object.
         total_time: wall time of the whole run (set-up included), seconds.
         time_per_collision_free: ``total_time / collision_free`` (inf when none), seconds.
-        fit_time: time spent in ISF, seconds.
-        collision_time: time spent in collision checks, seconds.
+        fit_time: time spent in ISF and in repairs, seconds (summed over the worker threads,
+            so with ``workers > 1`` it may exceed ``total_time``).
+        collision_time: time spent in collision checks, seconds (summed likewise).
         setup_time: time to prepare the sampler and the collision checker, seconds.
         batch_size: samples fitted at once (see :func:`plan`).
         surface_points: object points the run matched against (see ``working_spacing`` of
             :func:`plan`); 0 when not recorded.
+        workers: threads that evaluated samples (see :func:`plan`).
     """
 
     samples: int
@@ -129,6 +142,7 @@ class PlanStats:
     setup_time: float
     batch_size: int = 1
     surface_points: int = 0
+    workers: int = 1
 
 
 @dataclass(frozen=True, eq=False)
@@ -180,6 +194,7 @@ def plan(
     obstacles: Sequence[Plane] = (),
     collision_tolerance: float = 0.002,
     batch_size: int = BATCH_SIZE,
+    workers: int = 1,
     repair_collisions: bool = True,
     working_spacing: float | str | None = "auto",
     progress: Callable[[int, int, Grasp], None] | None = None,
@@ -195,7 +210,10 @@ def plan(
         config: ISF parameters; default the paper's.
         obstacles: half-spaces the gripper must not enter (e.g. ``Plane.table(z)``), object frame.
         collision_tolerance: penetration depth tolerated before a grasp counts as colliding, metres.
-        batch_size: samples fitted at once (see the module docstring); 1 is the paper's loop.
+        batch_size: samples fitted at once in lockstep, in one thread (see the module
+            docstring); 1 is the paper's loop.
+        workers: threads that fit, check and repair samples side by side (see the module
+            docstring); 1 (default) plans in the calling thread. Exclusive with ``batch_size > 1``.
         repair_collisions: when a fitted grasp collides, run :func:`isf.clearance.repair_penetration`
             on it (links pushed out of the object and obstacles while the contact surfaces are
             pulled back onto the object) and keep the repaired grasp if the re-check finds it
@@ -207,7 +225,8 @@ def plan(
         the ranked :class:`PlanResult`.
 
     Raises:
-        InvalidInputError: ``samples`` or ``batch_size`` is not a positive integer,
+        InvalidInputError: ``samples``, ``batch_size`` or ``workers`` is not a positive
+            integer, both ``batch_size`` and ``workers`` exceed 1,
             ``working_spacing`` is neither "auto", None nor a spacing > 0, or the
             sampler proposed an invalid pose or joint vector.
         GripperDescriptionError, ObjectLoadError, SamplerNotFound: bad gripper, object or sampler.
@@ -217,9 +236,12 @@ def plan(
     from .object_loading import load_object
 
     started = time.perf_counter()
-    for name, value in (("samples", samples), ("batch_size", batch_size)):
+    for name, value in (("samples", samples), ("batch_size", batch_size), ("workers", workers)):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
             raise InvalidInputError(f"{name} must be a positive integer, got {value!r}")
+    if workers > 1 and batch_size > 1:
+        raise InvalidInputError(f"batch_size={batch_size} and workers={workers}: choose lockstep "
+                                "batches or worker threads, not both (set one of them to 1)")
     config = FitConfig() if config is None else config
     gripper = gripper if isinstance(gripper, Gripper) else load_gripper(gripper)
     obj = obj if isinstance(obj, ObjectSurface) else load_object(obj)
@@ -227,46 +249,32 @@ def plan(
     sampler = get_sampler(sampler)
     rng = np.random.default_rng(seed)
     sampler.reset(obj, gripper, rng)
-    checker = CollisionChecker(gripper, obj, obstacles=obstacles, tolerance=collision_tolerance)
-    fitter = LockstepFitter(gripper, obj, config)
-    repairer = ClearanceRepair(gripper, obj, obstacles=obstacles) if repair_collisions else None
-    setup_time = time.perf_counter() - started
+    options = dict(obstacles=obstacles, tolerance=collision_tolerance, repair=repair_collisions)
 
     grasps: list[Grasp] = []
-    proposals: dict[int, Proposal] = {}
-    fit_time = collision_time = 0.0
-    while len(grasps) < samples:
-        while fitter.n_active < _slots(sampler, batch_size) and len(proposals) + len(grasps) < samples:
-            (proposal,) = sampler.propose(1, rng)
-            index = len(proposals) + len(grasps)
-            fitter.add(index, proposal.T_object_gripper, proposal.q)
-            proposals[index] = proposal
-        t0 = time.perf_counter()
-        finished = fitter.advance()
-        fit_time += time.perf_counter() - t0
-        outcomes = []
-        for index, result in sorted(finished, key=lambda item: item[0]):
-            proposal = proposals.pop(index)
-            t1 = time.perf_counter()
-            report = checker.check(result.T_object_gripper, result.q)
-            collision_time += time.perf_counter() - t1
-            if repairer is not None and not report.collision_free:
-                t2 = time.perf_counter()
-                repaired = repair_penetration(gripper, obj, result, fit_config=config, repairer=repairer)
-                t3 = time.perf_counter()
-                again = checker.check(repaired.T_object_gripper, repaired.q)
-                collision_time += time.perf_counter() - t3
-                fit_time += t3 - t2
-                if again.collision_free:
-                    result, report = repaired, again
-            error = result.mean_distance if result.all_surfaces_in_contact else NO_CONTACT_ERROR
-            outcomes.append(Outcome(proposal, error=error, collision_free=report.collision_free))
-            grasp = Grasp(result, report, dict(proposal.record), index)
-            grasps.append(grasp)
-            if progress is not None:
-                progress(len(grasps), samples, grasp)
-        if outcomes:
-            sampler.observe(outcomes)
+
+    def record(index: int, proposal: Proposal, result: FitResult,
+               report: CollisionReport) -> Outcome:
+        """Keep a sample's grasp and return its outcome for the sampler."""
+        grasp = Grasp(result, report, dict(proposal.record), index)
+        grasps.append(grasp)
+        if progress is not None:
+            progress(len(grasps), samples, grasp)
+        error = result.mean_distance if result.all_surfaces_in_contact else NO_CONTACT_ERROR
+        return Outcome(proposal, error=error, collision_free=report.collision_free)
+
+    if workers == 1:
+        judges = [SampleJudge(gripper, obj, config, **options)]
+        fitter = LockstepFitter(gripper, obj, config)
+        setup_time = time.perf_counter() - started
+        fit_time = _in_lockstep(sampler, rng, samples, batch_size, fitter, judges[0], record)
+    else:
+        judges = [SampleWorker(gripper, obj, config, **options) for _ in range(workers)]
+        setup_time = time.perf_counter() - started
+        _in_threads(sampler, rng, samples, judges, record)
+        fit_time = 0.0
+    fit_time += sum(j.fit_time for j in judges)
+    collision_time = sum(j.collision_time for j in judges)
 
     grasps.sort(key=Grasp.sort_key)
     total = time.perf_counter() - started
@@ -275,6 +283,61 @@ def plan(
         samples=samples, collision_free=n_free, valid=sum(g.valid for g in grasps),
         total_time=total, time_per_collision_free=total / n_free if n_free else float("inf"),
         fit_time=fit_time, collision_time=collision_time, setup_time=setup_time,
-        batch_size=int(batch_size), surface_points=obj.n_points,
+        batch_size=int(batch_size), surface_points=obj.n_points, workers=int(workers),
     )
     return PlanResult(tuple(grasps), stats, gripper.name, obj.name, sampler.name, seed, config)
+
+
+def _in_lockstep(sampler: Sampler, rng: np.random.Generator, samples: int, batch_size: int,
+                 fitter: LockstepFitter, judge: SampleJudge, record: Callable) -> float:
+    """The samples in one thread, up to ``batch_size`` fitted in lockstep, each observed as soon
+    as it finishes; returns the seconds spent fitting."""
+    proposals: dict[int, Proposal] = {}
+    done, fit_time = 0, 0.0
+    while done < samples:
+        while fitter.n_active < _slots(sampler, batch_size) and len(proposals) + done < samples:
+            (proposal,) = sampler.propose(1, rng)
+            index = len(proposals) + done
+            fitter.add(index, proposal.T_object_gripper, proposal.q)
+            proposals[index] = proposal
+        t0 = time.perf_counter()
+        finished = fitter.advance()
+        fit_time += time.perf_counter() - t0
+        outcomes = [record(index, proposals.pop(index), *judge.judge(result))
+                    for index, result in sorted(finished, key=lambda item: item[0])]
+        done += len(outcomes)
+        if outcomes:
+            sampler.observe(outcomes)
+    return fit_time
+
+
+def _in_threads(sampler: Sampler, rng: np.random.Generator, samples: int,
+                workers: list[SampleWorker], record: Callable) -> None:
+    """The samples on ``len(workers)`` threads: proposed in order, at most one per worker in
+    flight, and observed in order, so the sampler sees what it would see with that window
+    whatever the threads' timing."""
+    idle: queue.SimpleQueue[SampleWorker] = queue.SimpleQueue()
+    for worker in workers:
+        idle.put(worker)
+
+    def evaluate(proposal: Proposal):
+        worker = idle.get()  # never waits: no more tasks run than there are workers
+        try:
+            return worker.evaluate(proposal.T_object_gripper, proposal.q)
+        finally:
+            idle.put(worker)
+
+    pending: deque[tuple[int, Proposal, Future]] = deque()
+    proposed = 0
+    with ThreadPoolExecutor(len(workers), thread_name_prefix="isf-plan") as pool:
+        try:
+            while pending or proposed < samples:
+                while proposed < samples and len(pending) < _slots(sampler, len(workers)):
+                    (proposal,) = sampler.propose(1, rng)
+                    pending.append((proposed, proposal, pool.submit(evaluate, proposal)))
+                    proposed += 1
+                index, proposal, future = pending.popleft()
+                sampler.observe([record(index, proposal, *future.result())])
+        finally:
+            for *_, future in pending:
+                future.cancel()

@@ -39,13 +39,13 @@ class PointGrid:
         self.arrays = (order.astype(np.int64), start.astype(np.int64), lo, cell, shape)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _cell_index(x, lo, cell, size):
     """Cell of coordinate ``x`` along one axis, clipped to ``[0, size)``."""
     return min(max(int(np.floor((x - lo) / cell)), 0), size - 1)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _cell_keys(points, lo, cell, shape):
     """Flat cell index of every point (N,)."""
     keys = np.empty(len(points), np.int64)
@@ -57,7 +57,7 @@ def _cell_keys(points, lo, cell, shape):
     return keys
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def ball_candidates(centre, radius, order, start, lo, cell, shape, out):
     """Indices of the points in the cells within a cell's width of the ball (``centre`` (3,),
     ``radius`` m), written to the front of ``out`` (N,) cell by cell; returns how many."""
@@ -86,7 +86,7 @@ def ball_candidates(centre, radius, order, start, lo, cell, shape, out):
     return n
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _gap(x, low, cell):
     """Distance from ``x`` to the interval ``[low, low + cell]`` along one axis."""
     return max(low - x, x - low - cell, 0.0)

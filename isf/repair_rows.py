@@ -14,7 +14,7 @@ from numba import njit
 __all__ = ["deepest_rows", "undecided"]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def deepest_rows(violation, element, n_elements, activation, max_rows):
     """Rows within ``activation`` of their floor, at most ``max_rows`` per element.
 
@@ -52,7 +52,7 @@ def deepest_rows(violation, element, n_elements, activation, max_rows):
     return out
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def undecided(bound, bound_element, violation, element, n_elements, activation, max_rows, slack):
     """Which rows of unknown violation may still be used, given rows whose violation is known.
 

@@ -32,6 +32,17 @@ def test_plan_writes_valid_json(tmp_path, schema):
     assert len(data["grasps"]) == 4 and data["stats"]["samples"] == 6
     assert [g["rank"] for g in data["grasps"]] == [1, 2, 3, 4]
     assert set(data["grasps"][0]["joints"]) == {"left_finger_joint"}
+    assert data["stats"]["workers"] == 1
+
+
+def test_plan_with_worker_threads(tmp_path, schema):
+    out = tmp_path / "grasps.json"
+    proc = run("plan", "-g", "paper-parallel", "-o", "shape:cylinder", "-n", "6", "--workers", "2",
+               "--out", str(out), "--quiet")
+    assert proc.returncode == 0, proc.stderr
+    data = json.loads(out.read_text())
+    jsonschema.validate(data, schema)
+    assert data["stats"]["workers"] == 2 and len(data["grasps"]) == 6
 
 
 def test_plan_with_table_and_units(tmp_path, schema):
@@ -55,6 +66,8 @@ def test_plan_with_table_and_units(tmp_path, schema):
         (["--sampler", "no-such-sampler"], "no-such-sampler"),
         (["--object", "shape:no-such-shape"], "no-such-shape"),
         (["--object", "box_mm.stl"], "units"),
+        (["--workers", "0"], "--workers"),
+        (["--workers", "2", "--batch-size", "2"], "--workers"),
     ],
 )
 def test_bad_input_is_one_line_exit_2_and_no_file(tmp_path, args, message):

@@ -1,0 +1,133 @@
+"""Planning on worker threads (``isf.plan(..., workers=W)``): the same grasps as the window
+protocol run in one thread with the public pieces, whatever the threads' timing."""
+
+import threading
+from collections import deque
+
+import numpy as np
+import pytest
+
+import isf
+from isf.clearance import ClearanceRepair, repair_penetration
+
+
+@pytest.fixture(scope="module")
+def hand():
+    return isf.load_gripper("three-finger")
+
+
+@pytest.fixture(scope="module")
+def block():
+    """A box the size of a hand's grasp: fits often end with a link in it, so repairs run."""
+    return isf.open_object("shape:box", scale=3.0, max_points=1500)
+
+
+def _window_reference(gripper, obj, samples, seed, window):
+    """The protocol of ``workers=window``, in one thread, from ``isf.fit``, the collision checker
+    and the repair: proposals in order with at most ``window`` awaiting their outcome, outcomes
+    reported in order. Returns the grasps by sample index and the number of repairs that were
+    kept."""
+    sampler = isf.get_sampler("regret")
+    rng = np.random.default_rng(seed)
+    sampler.reset(obj, gripper, rng)
+    checker = isf.CollisionChecker(gripper, obj)
+    repairer = ClearanceRepair(gripper, obj)
+    kept_repairs = 0
+
+    def evaluate(proposal):
+        nonlocal kept_repairs
+        fit = isf.fit(gripper, obj, proposal.T_object_gripper, proposal.q)
+        report = checker.check(fit.T_object_gripper, fit.q)
+        if not report.collision_free:
+            repaired = repair_penetration(gripper, obj, fit, repairer=repairer)
+            again = checker.check(repaired.T_object_gripper, repaired.q)
+            if again.collision_free:
+                fit, report, kept_repairs = repaired, again, kept_repairs + 1
+        return fit, report
+
+    pending, grasps, proposed = deque(), {}, 0
+    while pending or proposed < samples:
+        limit = sampler.in_flight_limit()
+        while proposed < samples and len(pending) < (window if limit is None else
+                                                       max(1, min(window, limit))):
+            (proposal,) = sampler.propose(1, rng)
+            pending.append((proposed, proposal, evaluate(proposal)))
+            proposed += 1
+        index, proposal, (fit, report) = pending.popleft()
+        error = fit.mean_distance if fit.all_surfaces_in_contact else isf.planner.NO_CONTACT_ERROR
+        sampler.observe([isf.Outcome(proposal, error=error, collision_free=report.collision_free)])
+        grasps[index] = (fit, report)
+    return grasps, kept_repairs
+
+
+def _by_index(result):
+    return {g.sample_index: g for g in result.grasps}
+
+
+@pytest.mark.parametrize("workers", [1, 2, 3])
+def test_workers_give_the_window_protocol_grasps(hand, block, workers):
+    samples = 9
+    expected, kept_repairs = _window_reference(hand, block, samples, seed=2, window=workers)
+    assert kept_repairs >= 1  # the repair path ran and was used
+    result = isf.plan(hand, block, samples=samples, seed=2, workers=workers, working_spacing=None)
+    assert result.stats.workers == workers and result.stats.samples == samples
+    got = _by_index(result)
+    assert sorted(got) == list(range(samples))
+    for index, (fit, report) in expected.items():
+        grasp = got[index]
+        np.testing.assert_array_equal(grasp.T_object_gripper, fit.T_object_gripper)
+        np.testing.assert_array_equal(grasp.q, fit.q)
+        assert grasp.fit.mean_distance == fit.mean_distance
+        assert grasp.collision_free == report.collision_free
+        assert grasp.collision.penetration == report.penetration
+
+
+def test_one_worker_is_the_sequential_loop(hand, block):
+    a = isf.plan(hand, block, samples=6, seed=5, workers=1)
+    b = isf.plan(hand, block, samples=6, seed=5)  # the default: batch_size 1, workers 1
+    for ga, gb in zip(a.grasps, b.grasps):
+        assert ga.sample_index == gb.sample_index
+        np.testing.assert_array_equal(ga.T_object_gripper, gb.T_object_gripper)
+
+
+def test_progress_is_reported_in_sample_order_from_the_calling_thread(hand, block):
+    calls = []
+
+    def progress(done, total, grasp):
+        calls.append((done, total, grasp.sample_index, threading.current_thread()))
+
+    isf.plan(hand, block, samples=7, seed=1, workers=2, progress=progress)
+    assert [c[:3] for c in calls] == [(i + 1, 7, i) for i in range(7)]
+    assert all(c[3] is threading.main_thread() for c in calls)
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"workers": 0}, "workers must be a positive integer"),
+    ({"workers": 1.5}, "workers must be a positive integer"),
+    ({"workers": 2, "batch_size": 2}, "not both"),
+])
+def test_bad_worker_arguments(hand, block, kwargs, message):
+    with pytest.raises(isf.InvalidInputError, match=message):
+        isf.plan(hand, block, samples=2, **kwargs)
+
+
+def test_link_poses_from_many_threads_match_one_thread(hand):
+    """Pinocchio writes into a Data object: each thread must use its own."""
+    rng = np.random.default_rng(0)
+    Q = rng.uniform(hand.lower, hand.upper, size=(40, hand.n_joints))
+    expected = [hand.link_poses(q) for q in Q]
+    failures = []
+
+    def worker(offset):
+        for _ in range(20):
+            for i in range(offset, len(Q), 2):
+                poses = hand.link_poses(Q[i])
+                if any(not np.array_equal(poses[k], expected[i][k]) for k in poses):
+                    failures.append(i)
+
+    threads = [threading.Thread(target=worker, args=(k,)) for k in (0, 1)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert not failures
