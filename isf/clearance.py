@@ -26,7 +26,10 @@ Pinocchio's frame Jacobian of its link, gripper frame).
 
   - points sampled on every link's geometry, against the object tangent plane ``(a_i, n_i)``
     that bounds them best (the largest height above the planes of the 6 nearest object
-    points, as in :mod:`isf.collision`; a closed mesh object is resampled densely for this);
+    points, as in :mod:`isf.collision`; a closed mesh object is resampled densely for this).
+    Only samples near the object or inside it get one: a sample farther than ``activation +
+    margin`` plus twice the object's spacing, and outside, is clear of its floor by more than
+    ``activation``;
   - object points inside a convex geometry element, which must leave through the element's
     nearest face (this catches an object edge poking into a link between its samples).
 
@@ -62,7 +65,7 @@ import numpy as np
 import osqp
 import scipy.sparse as sp
 
-from .collision import Plane
+from .collision import Plane, object_voxels
 from .config import FitConfig
 from .correspondence import match_many
 from .dense_qp import solve_dense_qp
@@ -219,6 +222,7 @@ class ClearanceRepair:
         self.config = cfg = RepairConfig() if config is None else config
         rng = np.random.default_rng(0)  # the object's resampling, then the gripper's samples
         self._planes, self._grid, self._resampled = object_side(obj, cfg.object_spacing, rng)
+        self._voxels = object_voxels(obj)  # inside/outside of a closed mesh object, else None
         (self._frames, self._points_link, self._element, self._owner, self._floor,
          self._sphere_owner, self._sphere_centre, self._sphere_radius, self._convex) = gripper_side(
             gripper, cfg.sample_spacing, cfg.max_samples, cfg.margin, cfg.contact_allowance, rng)
@@ -266,13 +270,17 @@ class ClearanceRepair:
         """Clearance rows of gripper samples against the object's tangent planes.
 
         A sample's height above the object is that of the tangent plane (of the 6 nearest
-        dense object points) that bounds it best; a sample far from the surface (beyond
-        ``activation`` plus twice the object's spacing) and above the tangent plane of its
-        nearest object point gets that plane. Samples whose row is certainly neither among
-        the rows a step uses nor the deepest row (see :func:`isf.repair_rows.undecided`;
-        ``known`` holds the other rows of the state) are left out: the plane of their nearest
-        dense point bounds their height from below, and only the others get their tangent
-        planes.
+        dense object points) that bounds it best. Only samples near the object (closer than
+        ``activation`` plus ``margin`` plus twice the object's spacing: its *reach*) or inside
+        it get a row: a sample beyond reach and outside has a clearance above ``activation +
+        margin``, so its row could neither be used nor be violated. Inside or outside, for a
+        sample beyond reach, is read from the voxels of a closed mesh object
+        (:class:`isf.collision_voxels.SurfaceVoxels`) when they settle it, else from the
+        tangent plane of its nearest object point. Of the near samples, those whose row is
+        certainly neither among the rows a step uses nor the deepest row (see
+        :func:`isf.repair_rows.undecided`; ``known`` holds the other rows of the state) are
+        left out: the plane of their nearest dense point bounds their height from below, and
+        only the others get their tangent planes.
 
         Args:
             world: the samples, object frame, (M, 3).
@@ -284,25 +292,31 @@ class ClearanceRepair:
             ``floor - height`` (K,), metres).
         """
         obj, cfg = self.object, self.config
-        dist, nearest = obj.nearest(world)
-        normals = obj.normals[nearest]
-        heights = np.einsum("mi,mi->m", world - obj.points[nearest], normals)
-        violation = floor - heights
         reach = cfg.activation + cfg.margin + 2.0 * obj.spacing
-        close = np.flatnonzero((heights < 0.0) | (dist < reach))
+        dist, nearest = obj.search.query_within(world, reach)  # cheap for the far samples
+        far = np.flatnonzero(nearest < 0)
+        if len(far) and self._voxels is not None:  # those outside by the voxels get no row
+            far = far[~self._voxels.clear(world[far], world[far])]
+        if len(far):
+            dist[far], nearest[far] = obj.nearest(world[far])
+        found = np.flatnonzero(nearest >= 0)
+        heights = np.einsum("mi,mi->m", world[found] - obj.points[nearest[found]],
+                            obj.normals[nearest[found]])
+        near_or_inside = (dist[found] < reach) | (heights < 0.0)
+        close, heights = found[near_or_inside], heights[near_or_inside]
         if not len(close):
-            return np.arange(len(world)), normals, violation
+            return close, np.empty((0, 3)), np.empty(0)
+        world, floor, element = world[close], floor[close], element[close]
         planes = self._planes
         if self._resampled:  # the plane of the nearest dense point, one of the 6
-            _, first = planes.tree.query(world[close])
-            lower = np.einsum("mi,mi->m", world[close] - planes.points[first],
-                              planes.normals[first])
+            # the dense points begin with the object's own: its nearest point bounds the search
+            _, first = planes.tree.query(world, nearest[close])
+            lower = np.einsum("mi,mi->m", world - planes.points[first], planes.normals[first])
         else:  # the object's own points: its nearest point is the nearest dense one
-            lower = heights[close]
-        bound = np.full(len(world), np.inf)
-        bound[close] = floor[close] - lower  # the close samples' violations are at most this
-        exact = np.ones(len(world), dtype=bool)
-        exact[close] = False
+            lower = heights
+        bound = floor - lower  # the samples' violations are at most this
+        violation, normals = np.empty(len(close)), np.empty((len(close), 3))
+        exact = np.zeros(len(close), dtype=bool)
         n_elements, max_rows = len(self.gripper.geometries), cfg.max_rows
         # first the samples most likely to be kept (by their bound), then those still in doubt
         for most_likely in (True, False):
@@ -320,7 +334,7 @@ class ClearanceRepair:
             violation[candidates], normals[candidates] = floor[candidates] - h, n
             exact[candidates] = True
         keep = np.flatnonzero(exact)
-        return keep, normals[keep], violation[keep]
+        return close[keep], normals[keep], violation[keep]
 
     def penetration(self, T_object_gripper: np.ndarray, q: np.ndarray) -> float:
         """Deepest violation of the clearance rows at a state, metres (0 when none).

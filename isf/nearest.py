@@ -64,6 +64,32 @@ def _query(queries, guess, points, tree):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def _query_within(queries, radius, points, tree):
+    """The nearest point of each query (M, 3) closer than ``radius``: distances (M,) and indices
+    (M,), ``inf`` and -1 where there is none. The radius bounds each search from the start."""
+    m = len(queries)
+    distance, index = np.full(m, np.inf), np.full(m, -1, np.int64)
+    scratch = search_scratch()
+    limit = radius * radius
+    for q in range(m):
+        x, y, z = queries[q, 0], queries[q, 1], queries[q, 2]
+        # the search starts from the previous query's answer when it lies within the bound,
+        # else from the bound itself (a point exactly at the bound is then not taken)
+        best, bound = -1, limit
+        if q > 0 and index[q - 1] >= 0:
+            p = index[q - 1]
+            d2 = (points[p, 0] - x) ** 2 + (points[p, 1] - y) ** 2 + (points[p, 2] - z) ** 2
+            if d2 < limit:
+                best, bound = p, d2
+        best, d2 = kdtree.nearest(x, y, z, best, bound, tree[0], tree[1], tree[2], tree[3],
+                                  tree[4], tree[5], tree[6], tree[7], scratch[0], scratch[1],
+                                  scratch[2])
+        if best >= 0:
+            distance[q], index[q] = np.sqrt(d2), best
+    return distance, index
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def _query_k(queries, k, tree):
     """The k nearest points of each query (M, 3) (:func:`isf.kdtree.k_nearest`): distances
     (M, k), indices (M, k)."""
@@ -120,6 +146,25 @@ class NearestPoints:
                 raise ValueError(f"guess must hold one index in [-1, {len(self.points) - 1}] per "
                                  f"query ({len(queries)}); pass None for no guesses")
         return _query(queries, guess, self.points, self.tree)
+
+    def query_within(self, queries: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
+        """Nearest point of each query point, among the points closer than ``radius`` metres.
+
+        Far cheaper than :meth:`query` for queries far from every point: the radius bounds the
+        search from the start.
+
+        Args:
+            queries: query points, (M, 3).
+            radius: search radius, metres, > 0.
+
+        Returns:
+            distances (M,) and indices (M,) as :meth:`query` gives them where the nearest point
+            lies closer than ``radius``; ``inf`` and -1 elsewhere.
+        """
+        if not radius > 0.0:
+            raise ValueError(f"radius must be > 0, got {radius!r}")
+        queries = np.ascontiguousarray(queries, dtype=np.float64).reshape(-1, 3)
+        return _query_within(queries, float(radius), self.points, self.tree)
 
     def query_k(self, queries: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
         """The ``k`` nearest points of each query point.

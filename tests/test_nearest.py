@@ -135,3 +135,25 @@ def test_k_nearest_of_no_queries_and_bad_k():
     for k in (0, -1, 2.0, True):
         with pytest.raises(ValueError, match="positive integer"):
             search.query_k(np.zeros((1, 3)), k)
+
+
+@pytest.mark.parametrize("radius", [0.05, 0.3, 2.0])
+def test_query_within_a_radius_matches_brute_force(radius):
+    rng = np.random.default_rng(7)
+    points = rng.normal(size=(500, 3)) * [1.0, 0.5, 0.05]
+    points = np.concatenate([points, points[:50]])  # ties: the lowest index must win
+    walk = np.cumsum(rng.normal(scale=0.05, size=(200, 3)), axis=0)  # runs of neighbours
+    queries = np.concatenate([walk, rng.normal(size=(200, 3)) * 3.0, points[:20]])
+    distance, index = NearestPoints(points).query_within(queries, radius)
+    expected_distance, expected_index = _brute_force(points, queries)
+    inside = expected_distance < radius
+    assert inside.any() and not inside.all()
+    np.testing.assert_array_equal(index[inside], expected_index[inside])
+    np.testing.assert_allclose(distance[inside], expected_distance[inside], rtol=1e-12, atol=0)
+    np.testing.assert_array_equal(index[~inside], -1)
+    assert np.all(np.isinf(distance[~inside]))
+
+
+def test_query_within_refuses_a_bad_radius():
+    with pytest.raises(ValueError, match="radius"):
+        NearestPoints(np.zeros((3, 3))).query_within(np.zeros((1, 3)), 0.0)

@@ -132,27 +132,26 @@ def hand_on_cylinder():
 
 def reference_violations(repairer: ClearanceRepair, T, R, p):
     """Every clearance row candidate of a state, as the repair defines them (no pruning):
-    samples of elements near the object get the plane of their nearest object point when far
-    from it (and above it), else the best of the tangent planes of their 6 nearest dense
-    points; every object point inside or near a convex element gets its row."""
+    samples of elements near the object that lie near the object or inside it (by trimesh's
+    point-in-mesh test) get the best of the tangent planes of their 6 nearest dense points;
+    every object point inside or near a convex element gets its row."""
     obj, cfg = repairer.object, repairer.config
     sel = repairer._near_samples(T, R, p)
     owner, local = repairer._owner[sel], repairer._points_link[sel]
     rotation = T[:3, :3] @ R
     world = np.einsum("mij,mj->mi", rotation[owner], local) + (p @ T[:3, :3].T + T[:3, 3])[owner]
-    dist, nearest = obj.nearest(world)
-    normals = obj.normals[nearest].copy()
-    heights = np.einsum("mi,mi->m", world - obj.points[nearest], normals)
-    close = np.flatnonzero((heights < 0.0) | (dist < cfg.activation + cfg.margin + 2 * obj.spacing))
+    dist, _ = obj.nearest(world)
+    inside = trimesh.Trimesh(obj.mesh_vertices, obj.mesh_faces).contains(world)
+    close = np.flatnonzero(inside | (dist < cfg.activation + cfg.margin + 2 * obj.spacing))
     planes = repairer._planes
     _, idx = planes.tree.query_k(world[close], NEIGHBOURS)
     h = np.einsum("mki,mki->mk", world[close, None, :] - planes.points[idx], planes.normals[idx])
-    heights[close] = h.max(axis=1)
-    normals[close] = planes.normals[idx[np.arange(len(close)), h.argmax(axis=1)]]
+    heights = h.max(axis=1)
+    normals = planes.normals[idx[np.arange(len(close)), h.argmax(axis=1)]]
     convex = repairer._convex
     rows = convex.rows(T, R, p, repairer._grid, 0.003 + cfg.margin, len(planes.points))
-    return (np.r_[repairer._floor[sel] - heights, convex.floor[rows.element] - rows.depth],
-            np.r_[repairer._element[sel], convex.element[rows.element]],
+    return (np.r_[repairer._floor[sel][close] - heights, convex.floor[rows.element] - rows.depth],
+            np.r_[repairer._element[sel][close], convex.element[rows.element]],
             np.r_[normals, rows.normal])
 
 
@@ -181,3 +180,34 @@ def test_repair_rows_at_random_states_are_those_of_a_full_evaluation(hand_on_cyl
         assert rows.violation.max() == pytest.approx(violation.max(), rel=1e-12, abs=1e-17)
         n_used += len(used)
     assert n_used > 50  # the states did touch the object
+
+
+@pytest.mark.parametrize("keep_mesh", [True, False])
+def test_only_samples_near_or_inside_the_object_get_rows(hand_on_cylinder, keep_mesh):
+    """Samples far outside the object get no row; samples deep inside do, however far from the
+    surface (inside told by the mesh's voxels, or for a point cloud by the nearest point's
+    plane)."""
+    from isf.clearance import _NO_ROWS
+
+    gripper, cylinder = hand_on_cylinder
+    obj = cylinder if keep_mesh else isf.ObjectSurface(cylinder.points, cylinder.normals,
+                                                       spacing=cylinder.spacing)
+    repairer = ClearanceRepair(gripper, obj)
+    assert (repairer._voxels is not None) == keep_mesh
+    cfg = repairer.config
+    reach = cfg.activation + cfg.margin + 2 * obj.spacing
+    centre = 0.5 * (obj.points.min(axis=0) + obj.points.max(axis=0))  # the axis is along x
+    radius = np.linalg.norm(obj.points[:, 1:] - centre[1:], axis=1).max()
+    rng = np.random.default_rng(0)
+    axis = centre + np.c_[rng.uniform(-0.03, 0.03, 20), np.zeros((20, 2))]  # deep inside
+    directions = rng.normal(size=(20, 2))
+    far = centre + np.c_[rng.uniform(-0.03, 0.03, 20), (radius + 3 * reach) * directions
+                         / np.linalg.norm(directions, axis=1)[:, None]]  # far out, sideways
+    world = np.concatenate([axis, far])
+    dist, _ = obj.nearest(world)
+    assert dist.min() > reach  # all of them beyond reach of every object point
+    floor = np.full(len(world), cfg.margin)
+    element = np.zeros(len(world), dtype=np.int64)
+    kept, normals, violation = repairer._sample_rows(world, floor, element, _NO_ROWS)
+    assert set(kept.tolist()) <= set(range(20))  # no far-outside sample
+    assert len(kept) >= 1 and np.all(violation > reach)  # the deepest inside ones, violated
