@@ -293,10 +293,15 @@ class ClearanceRepair:
         """
         obj, cfg = self.object, self.config
         reach = cfg.activation + cfg.margin + 2.0 * obj.spacing
-        dist, nearest = obj.search.query_within(world, reach)  # cheap for the far samples
-        far = np.flatnonzero(nearest < 0)
-        if len(far) and self._voxels is not None:  # those outside by the voxels get no row
-            far = far[~self._voxels.clear(world[far], world[far])]
+        voxels = self._voxels
+        dist, nearest = np.full(len(world), np.inf), np.full(len(world), -1)
+        if voxels is None:
+            outside, look = np.zeros(len(world), dtype=bool), slice(None)
+        else:  # outside by the voxels and beyond reach by their distance bound: no row
+            outside = voxels.clear(world, world)
+            look = np.flatnonzero(~outside | (voxels.distance_below(world) < reach))
+        dist[look], nearest[look] = obj.search.query_within(world[look], reach)
+        far = np.flatnonzero((nearest < 0) & ~outside)  # beyond reach, maybe inside
         if len(far):
             dist[far], nearest[far] = obj.nearest(world[far])
         found = np.flatnonzero(nearest >= 0)
