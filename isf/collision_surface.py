@@ -17,6 +17,10 @@ from . import kdtree
 from .nearest import NearestPoints, search_scratch
 
 NEIGHBOURS = 6  # tangent planes of the nearest surface points a point must lie below to be inside
+TREE_LEAF_SIZE = 32
+"""Leaf size of the surface's k-d tree: the checks and the repair query points millimetres to
+centimetres from a dense surface sample, where leaves of 32 points answered a third faster than
+leaves of 8 (the same answers)."""
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -61,7 +65,7 @@ class TangentPlanes:
         self.normals = np.ascontiguousarray(normals, dtype=float)
         self.spacing = float(spacing)
         """Typical distance between neighbouring points, metres."""
-        self.tree = NearestPoints(self.points)
+        self.tree = NearestPoints(self.points, leaf_size=TREE_LEAF_SIZE)
         """Exact nearest-neighbour search on ``points``."""
 
     def evaluate(self, query: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

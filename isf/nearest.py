@@ -110,14 +110,19 @@ class NearestPoints:
 
     Args:
         points: the points, (N, 3), N >= 1.
+        leaf_size: points per leaf of the k-d tree at most (:data:`isf.kdtree.LEAF_SIZE` by
+            default). It changes the speed, never an answer: larger leaves suit queries that
+            lie farther from the points than their spacing (on a dense surface sample).
     """
 
-    def __init__(self, points: np.ndarray):
+    def __init__(self, points: np.ndarray, leaf_size: int = kdtree.LEAF_SIZE):
         self.points = np.ascontiguousarray(points, dtype=np.float64)
         """The points, (N, 3)."""
         if self.points.ndim != 2 or self.points.shape[1] != 3 or not len(self.points):
             raise ValueError(f"need points of shape (N, 3) with N >= 1, got {self.points.shape}")
-        order, *nodes = kdtree.build(self.points, kdtree.LEAF_SIZE)
+        if isinstance(leaf_size, bool) or not isinstance(leaf_size, (int, np.integer)) or leaf_size < 1:
+            raise ValueError(f"leaf_size must be a positive integer, got {leaf_size!r}")
+        order, *nodes = kdtree.build(self.points, int(leaf_size))
         self.tree = (self.points[order], order, *nodes)
         """The tree's arrays (the points in tree order, leaves contiguous, then
         :func:`isf.kdtree.build`'s), for :func:`nearest_point` and :func:`isf.kdtree.k_nearest`."""

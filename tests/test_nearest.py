@@ -12,12 +12,13 @@ def _brute_force(points, queries):
     return np.sqrt(d2.min(axis=1)), d2.argmin(axis=1)  # argmin: the lowest index among ties
 
 
+@pytest.mark.parametrize("leaf_size", [1, 8, 32])
 @pytest.mark.parametrize("n_points", [1, 2, 7, 9, 100, 3000])
-def test_matches_brute_force_and_ckdtree(n_points):
+def test_matches_brute_force_and_ckdtree(n_points, leaf_size):
     rng = np.random.default_rng(n_points)
     points = rng.normal(size=(n_points, 3)) * [1.0, 0.3, 0.01]  # flat, anisotropic cloud
     queries = np.concatenate([rng.normal(size=(300, 3)), 50.0 * rng.normal(size=(20, 3))])
-    distance, index = NearestPoints(points).query(queries)
+    distance, index = NearestPoints(points, leaf_size=leaf_size).query(queries)
     expected_distance, expected_index = _brute_force(points, queries)
     np.testing.assert_allclose(distance, expected_distance, rtol=1e-12, atol=1e-15)
     np.testing.assert_array_equal(index, expected_index)
@@ -157,3 +158,9 @@ def test_query_within_a_radius_matches_brute_force(radius):
 def test_query_within_refuses_a_bad_radius():
     with pytest.raises(ValueError, match="radius"):
         NearestPoints(np.zeros((3, 3))).query_within(np.zeros((1, 3)), 0.0)
+
+
+@pytest.mark.parametrize("leaf_size", [0, -3, 2.5, True])
+def test_refuses_a_bad_leaf_size(leaf_size):
+    with pytest.raises(ValueError, match="leaf_size"):
+        NearestPoints(np.zeros((3, 3)), leaf_size=leaf_size)
