@@ -18,9 +18,9 @@ from .nearest import NearestPoints, search_scratch
 
 NEIGHBOURS = 6  # tangent planes of the nearest surface points a point must lie below to be inside
 TREE_LEAF_SIZE = 32
-"""Leaf size of the surface's k-d tree: the checks and the repair query points millimetres to
-centimetres from a dense surface sample, where leaves of 32 points answered a third faster than
-leaves of 8 (the same answers)."""
+"""The leaf size of a surface's k-d tree. The checks and the repair query points millimetres
+to centimetres from a dense surface sample, where leaves of 32 points answered a third faster
+than leaves of 8 (the same answers)."""
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
