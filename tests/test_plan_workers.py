@@ -131,3 +131,21 @@ def test_link_poses_from_many_threads_match_one_thread(hand):
     for t in threads:
         t.join()
     assert not failures
+
+
+def test_an_invalid_proposal_fails_the_plan_with_its_error(hand, block):
+    """A sampler's bad pose is refused on the worker thread and raised in the caller's, as in the
+    sequential loop; the plan stops."""
+    from isf.samplers import UniformSampler
+
+    class Reflecting(UniformSampler):
+        name = "reflecting"
+
+        def propose(self, n, rng):
+            proposals = super().propose(n, rng)
+            flip = np.diag([1.0, 1.0, -1.0, 1.0])
+            return [isf.Proposal(p.T_object_gripper @ flip, p.q, p.record) for p in proposals]
+
+    for workers in (1, 2):
+        with pytest.raises(isf.InvalidInputError, match="not a rigid transform"):
+            isf.plan(hand, block, samples=4, sampler=Reflecting(), workers=workers)
