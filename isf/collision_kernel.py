@@ -464,7 +464,8 @@ def _clearance_candidates(poses, act, apart, row, rp, pk, foot, samples, surface
         x, y, z = _transform(poses, e, samples[s, 0], samples[s, 1], samples[s, 2])
         candidates[j, 0], candidates[j, 1], candidates[j, 2] = x, y, z
         owner[j] = e
-        nearest[j] = np.sqrt(nearest_point(x, y, z, foot[rp[r]], points, surface[2], scratch)[1])
+        nearest[j] = np.sqrt(nearest_point(x, y, z, foot[rp[r]], points, surface[2], scratch,
+                                             np.inf)[1])
     return candidates, owner, nearest
 
 

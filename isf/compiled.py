@@ -131,8 +131,9 @@ def _warm_engine() -> None:
 def _warm_checks() -> None:
     """The kernels of the collision checks and the repair."""
     points = np.random.default_rng(0).uniform(-0.01, 0.01, (50, 3))
-    NearestPoints(points).query_k(points[:2], 6)
-    NearestPoints(points).query_within(points[:2], 0.01)  # the repair's near samples
+    search = NearestPoints(points)
+    search.query_k(points[:2], 6)
+    search.query_within(points[:2], 0.01)  # the repair's near samples
     box = trimesh.creation.box(extents=(0.01, 0.01, 0.01))
     ConvexElements([(box.vertices, box.faces)], np.zeros(1), np.zeros(1)).rows(
         np.eye(4), np.eye(3)[None], np.zeros((1, 3)), PointGrid(points, 0.004), 0.003, 12)

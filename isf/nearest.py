@@ -32,58 +32,40 @@ def search_scratch():
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def nearest_point(x, y, z, guess, points, tree, scratch):
-    """The nearest point to ``(x, y, z)``: ``(index, squared distance)``, exact.
+def nearest_point(x, y, z, guess, points, tree, scratch, limit):
+    """The nearest point to ``(x, y, z)`` closer than ``sqrt(limit)``: ``(index, squared
+    distance)``, exact; ``(-1, limit)`` when there is none (``limit = inf``: the nearest point).
 
     Args:
-        guess: a point index to bound the search with, or -1.
+        guess: a point index to bound the search with, or -1 (a guess not closer than the
+            limit is ignored).
         points, tree: :attr:`NearestPoints.points` and :attr:`NearestPoints.tree`.
         scratch: :func:`search_scratch`.
+        limit: squared search radius, m^2.
     """
-    best, best_d2 = -1, np.inf
+    best, best_d2 = -1, limit
     if guess >= 0:
-        best = guess
-        best_d2 = (points[guess, 0] - x) ** 2 + (points[guess, 1] - y) ** 2 + (points[guess, 2] - z) ** 2
+        d2 = (points[guess, 0] - x) ** 2 + (points[guess, 1] - y) ** 2 + (points[guess, 2] - z) ** 2
+        if d2 < limit:
+            best, best_d2 = guess, d2
     return kdtree.nearest(x, y, z, best, best_d2, tree[0], tree[1], tree[2], tree[3], tree[4], tree[5],
                           tree[6], tree[7], scratch[0], scratch[1], scratch[2])
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _query(queries, guess, points, tree):
-    """:func:`nearest_point` of each query (M, 3) with its guess (M,): distances (M,), indices (M,)."""
-    m = len(queries)
-    distance, index = np.empty(m), np.empty(m, np.int64)
-    scratch = search_scratch()
-    for q in range(m):
-        start = guess[q]
-        if start < 0 and q > 0:  # the previous query's answer: queries often come in runs
-            start = index[q - 1]
-        index[q], d2 = nearest_point(queries[q, 0], queries[q, 1], queries[q, 2], start, points, tree, scratch)
-        distance[q] = np.sqrt(d2)
-    return distance, index
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _query_within(queries, radius, points, tree):
-    """The nearest point of each query (M, 3) closer than ``radius``: distances (M,) and indices
-    (M,), ``inf`` and -1 where there is none. The radius bounds each search from the start."""
+def _query(queries, guess, limit, points, tree):
+    """:func:`nearest_point` of each query (M, 3) with its guess (M,) within the squared radius
+    ``limit``: distances (M,), indices (M,); ``inf`` and -1 where no point is that close. A query
+    without a guess starts from the previous query's answer (queries often come in runs)."""
     m = len(queries)
     distance, index = np.full(m, np.inf), np.full(m, -1, np.int64)
     scratch = search_scratch()
-    limit = radius * radius
     for q in range(m):
-        x, y, z = queries[q, 0], queries[q, 1], queries[q, 2]
-        # the search starts from the previous query's answer when it lies within the bound,
-        # else from the bound itself (a point exactly at the bound is then not taken)
-        best, bound = -1, limit
-        if q > 0 and index[q - 1] >= 0:
-            p = index[q - 1]
-            d2 = (points[p, 0] - x) ** 2 + (points[p, 1] - y) ** 2 + (points[p, 2] - z) ** 2
-            if d2 < limit:
-                best, bound = p, d2
-        best, d2 = kdtree.nearest(x, y, z, best, bound, tree[0], tree[1], tree[2], tree[3],
-                                  tree[4], tree[5], tree[6], tree[7], scratch[0], scratch[1],
-                                  scratch[2])
+        start = guess[q]
+        if start < 0 and q > 0:
+            start = index[q - 1]
+        best, d2 = nearest_point(queries[q, 0], queries[q, 1], queries[q, 2], start, points, tree,
+                                 scratch, limit)
         if best >= 0:
             distance[q], index[q] = np.sqrt(d2), best
     return distance, index
@@ -150,7 +132,7 @@ class NearestPoints:
                     -1 <= guess.min() and guess.max() < len(self.points))):
                 raise ValueError(f"guess must hold one index in [-1, {len(self.points) - 1}] per "
                                  f"query ({len(queries)}); pass None for no guesses")
-        return _query(queries, guess, self.points, self.tree)
+        return _query(queries, guess, np.inf, self.points, self.tree)
 
     def query_within(self, queries: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
         """Nearest point of each query point, among the points closer than ``radius`` metres.
@@ -169,7 +151,8 @@ class NearestPoints:
         if not radius > 0.0:
             raise ValueError(f"radius must be > 0, got {radius!r}")
         queries = np.ascontiguousarray(queries, dtype=np.float64).reshape(-1, 3)
-        return _query_within(queries, float(radius), self.points, self.tree)
+        return _query(queries, np.full(len(queries), -1, dtype=np.int64), float(radius) ** 2,
+                      self.points, self.tree)
 
     def query_k(self, queries: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
         """The ``k`` nearest points of each query point.

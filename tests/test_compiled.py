@@ -35,7 +35,7 @@ def test_warm_up_covers_every_kernel_call_of_a_plan():
     entry_points = {  # the kernels the engine calls from Python (they call the others)
         "isf.lockstep_kernel.run", "isf.lockstep_kernel.enter_level", "isf.lockstep_kernel.score_state",
         "isf.lockstep_kernel.finish_round", "isf.ipfo_kernel.resume", "isf.nearest._query",
-        "isf.nearest._query_k", "isf.nearest._query_within", "isf.correspondence._filter_pairs", "isf.chain._frame_kinematics",
+        "isf.nearest._query_k", "isf.correspondence._filter_pairs", "isf.chain._frame_kinematics",
         "isf.dense_qp._dual_active_set", "isf.collision_kernel.check_elements",
         "isf.collision_kernel.reverse_clearance", "isf.collision._rigid",
     }
