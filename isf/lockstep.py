@@ -264,10 +264,16 @@ def _check_joints(gripper: Gripper, q: np.ndarray | None) -> np.ndarray:
     if q is None:
         return gripper.q_initial.copy()
     q = np.asarray(q, dtype=float).reshape(-1)
-    if q.shape != (gripper.n_joints,) or not np.all(np.isfinite(q)):
+    if q.shape != (gripper.n_joints,):
         raise InvalidInputError(
             f"q must hold {gripper.n_joints} finite values, one per actuated joint "
             f"{list(gripper.joint_names)}, got {q.shape[0]}"
+        )
+    if not np.all(np.isfinite(q)):
+        raise InvalidInputError(
+            f"q holds NaN, infinite or missing (None) values: {q.tolist()}; give finite joint "
+            f"values for {list(gripper.joint_names)} (radians or metres), or q=None for the "
+            "gripper's initial joints"
         )
     outside = [
         f"{name}={value:g} not in [{lo:g}, {hi:g}]"

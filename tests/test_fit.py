@@ -146,6 +146,11 @@ def test_bad_inputs_to_fit(paper_gripper):
         isf.fit(paper_gripper, obj, np.eye(4), q=[0.5])
     with pytest.raises(isf.InvalidInputError, match="1 finite values"):
         isf.fit(paper_gripper, obj, np.eye(4), q=[0.01, 0.01])
+    for missing in ([np.nan], [None]):
+        with pytest.raises(isf.InvalidInputError, match="NaN, infinite or missing"):
+            isf.fit(paper_gripper, obj, np.eye(4), q=missing)
+    with pytest.raises(isf.InvalidInputError, match="missing"):  # one None per pose
+        isf.fit_many(paper_gripper, obj, np.stack([np.eye(4)] * 2), q=[None, None])
     with pytest.raises(isf.ConfigError, match="levels"):
         isf.FitConfig(levels=0)
 
