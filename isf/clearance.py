@@ -66,6 +66,7 @@ import osqp
 import scipy.sparse as sp
 
 from .collision import Plane, object_voxels
+from .collision_surface import NEIGHBOURS
 from .config import FitConfig
 from .correspondence import match_many
 from .dense_qp import solve_dense_qp
@@ -74,7 +75,7 @@ from .gripper import Gripper
 from .lockstep import score_fit
 from .object_surface import ObjectSurface
 from .repair_geometry import gripper_side, object_side
-from .repair_rows import deepest_rows, undecided
+from .repair_rows import deepest_rows, sample_rows
 from .result import FitResult
 from .segments import Segments
 from .se3 import cross, exp_so3
@@ -87,6 +88,8 @@ _MM = 1000.0  # QP length unit: millimetres per metre
 _CONVEX_REACH = 0.003  # object points this close to a convex element (beyond its floor) get rows, m
 _OUTLIER_FACTOR = 3.0  # pull mode: pairs farther than this times the median distance are dropped
 _BOUND_SLACK = 1e-12  # rounding allowance on the bounds of a sample's violation, m
+_NO_VOXELS = (np.zeros((0, 0, 0), np.int64), np.zeros((0, 0, 0), np.int32), np.zeros(3), 1.0)
+"""The voxel arrays of :func:`isf.repair_rows.sample_rows` for an object without voxels."""
 _NO_CONTACT = (np.empty((0, 3)), np.empty((0, 3)), np.empty((0, 3)), np.empty(0, dtype=int))
 
 
@@ -223,6 +226,9 @@ class ClearanceRepair:
         rng = np.random.default_rng(0)  # the object's resampling, then the gripper's samples
         self._planes, self._grid, self._resampled = object_side(obj, cfg.object_spacing, rng)
         self._voxels = object_voxels(obj)  # inside/outside of a closed mesh object, else None
+        voxels = self._voxels
+        self._voxel_arrays = _NO_VOXELS if voxels is None else (
+            voxels.table, voxels.steps, voxels.lo, voxels.size)
         (self._frames, self._points_link, self._element, self._owner, self._floor,
          self._sphere_owner, self._sphere_centre, self._sphere_radius, self._convex) = gripper_side(
             gripper, cfg.sample_spacing, cfg.max_samples, cfg.margin, cfg.contact_allowance, rng)
@@ -293,53 +299,13 @@ class ClearanceRepair:
         """
         obj, cfg = self.object, self.config
         reach = cfg.activation + cfg.margin + 2.0 * obj.spacing
-        voxels = self._voxels
-        dist, nearest = np.full(len(world), np.inf), np.full(len(world), -1)
-        if voxels is None:
-            outside, look = np.zeros(len(world), dtype=bool), slice(None)
-        else:  # outside by the voxels and beyond reach by their distance bound: no row
-            outside = voxels.clear(world, world)
-            look = np.flatnonzero(~outside | (voxels.distance_below(world) < reach))
-        dist[look], nearest[look] = obj.search.query_within(world[look], reach)
-        far = np.flatnonzero((nearest < 0) & ~outside)  # beyond reach, maybe inside
-        if len(far):
-            dist[far], nearest[far] = obj.nearest(world[far])
-        found = np.flatnonzero(nearest >= 0)
-        heights = np.einsum("mi,mi->m", world[found] - obj.points[nearest[found]],
-                            obj.normals[nearest[found]])
-        near_or_inside = (dist[found] < reach) | (heights < 0.0)
-        close, heights = found[near_or_inside], heights[near_or_inside]
-        if not len(close):
-            return close, np.empty((0, 3)), np.empty(0)
-        world, floor, element = world[close], floor[close], element[close]
         planes = self._planes
-        if self._resampled:  # the plane of the nearest dense point, one of the 6
-            # the dense points begin with the object's own: its nearest point bounds the search
-            _, first = planes.tree.query(world, nearest[close])
-            lower = np.einsum("mi,mi->m", world - planes.points[first], planes.normals[first])
-        else:  # the object's own points: its nearest point is the nearest dense one
-            lower = heights
-        bound = floor - lower  # the samples' violations are at most this
-        violation, normals = np.empty(len(close)), np.empty((len(close), 3))
-        exact = np.zeros(len(close), dtype=bool)
-        n_elements, max_rows = len(self.gripper.geometries), cfg.max_rows
-        # first the samples most likely to be kept (by their bound), then those still in doubt
-        for most_likely in (True, False):
-            candidates = np.flatnonzero(~exact)
-            todo = undecided(bound[candidates], element[candidates],
-                             np.concatenate([violation[exact], known.violation]),
-                             np.concatenate([element[exact], known.element]), n_elements,
-                             cfg.activation, max_rows, _BOUND_SLACK)
-            candidates = candidates[todo]
-            if most_likely:
-                candidates = candidates[deepest_rows(bound[candidates], element[candidates],
-                                                     n_elements, np.inf, max_rows)]
-                candidates.sort()
-            h, n = planes.evaluate(world[candidates])[:2]
-            violation[candidates], normals[candidates] = floor[candidates] - h, n
-            exact[candidates] = True
-        keep = np.flatnonzero(exact)
-        return close[keep], normals[keep], violation[keep]
+        return sample_rows(
+            np.ascontiguousarray(world, dtype=np.float64), floor, element, known.violation,
+            known.element, len(self.gripper.geometries), cfg.activation, cfg.max_rows,
+            _BOUND_SLACK, reach, (obj.points, obj.normals, obj.search.tree), self._voxel_arrays,
+            (planes.points, planes.normals, planes.tree.tree, min(NEIGHBOURS, len(planes.points))),
+            self._resampled)
 
     def penetration(self, T_object_gripper: np.ndarray, q: np.ndarray) -> float:
         """Deepest violation of the clearance rows at a state, metres (0 when none).

@@ -27,6 +27,7 @@ import numpy as np
 import pinocchio as pin
 import trimesh
 
+from .clearance import ClearanceRepair
 from .collision import CollisionChecker
 from .collision_kernel import check_elements
 from .collision_voxels import SurfaceVoxels
@@ -58,7 +59,7 @@ def _tiny_gripper() -> Gripper:
 
 def _check_collisions() -> None:
     """Collision checks of a convex block (the pad's) and a non-convex ring above it against a
-    closed mesh, apart and pressed in."""
+    closed mesh, apart and pressed in, and the repair of the pressed-in state."""
     tiny = _tiny_gripper()
     block = trimesh.creation.box(extents=(0.02, 0.02, 0.01))
     block.apply_translation((0.05, 0.0, 0.005))  # the pad lies on its lower face
@@ -77,6 +78,7 @@ def _check_collisions() -> None:
         T = np.eye(4)
         T[2, 3] = -depth
         checker.check(T, np.zeros(1))
+    ClearanceRepair(gripper, obj).repair(T, np.zeros(1))  # the repair's clearance rows
 
 
 def warm_up() -> float:
@@ -86,8 +88,8 @@ def warm_up() -> float:
     argument types), once more with IPFO pausing for Python (as it does for OSQP finger steps
     and for joints without compiled kinematics), asks for nearest points as the repair does,
     runs the repair's convex-element test, row selection and a small repair QP, the voxel
-    tests, and collision checks of a convex and a non-convex element against a mesh, apart and
-    pressed in. When the kernels of the checks and the repair are not compiled yet and the
+    tests, collision checks of a convex and a non-convex element against a mesh, apart and
+    pressed in, and the repair of the pressed-in state. When the kernels of the checks and the repair are not compiled yet and the
     machine has a second core, a second process compiles them (into the same cache) while this
     one compiles the engine's.
     """

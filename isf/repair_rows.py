@@ -3,7 +3,9 @@
 * :func:`deepest_rows`: the rows a repair step uses, the most violated ones of each geometry
   element;
 * :func:`undecided`: which rows whose violation is only bounded may still be among them, or
-  be the most violated row of all (the others need not be computed).
+  be the most violated row of all (the others need not be computed);
+* :func:`sample_rows`: the clearance rows of gripper samples against the object's tangent
+  planes (:meth:`isf.clearance.ClearanceRepair._sample_rows` documents them), in one call.
 """
 
 from __future__ import annotations
@@ -11,7 +13,11 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["deepest_rows", "undecided"]
+from .collision_surface import _evaluate
+from .collision_voxels import _clear, _distance_below
+from .nearest import _query
+
+__all__ = ["deepest_rows", "sample_rows", "undecided"]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -86,3 +92,96 @@ def undecided(bound, bound_element, violation, element, n_elements, activation, 
         b = bound[i] + slack
         out[i] = not (b < top[bound_element[i], max_rows - 1] or (b <= -activation and b < largest))
     return out
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _height(world, i, points, normals, j):
+    """``(world[i] - points[j]) . normals[j]``, summed in coordinate order."""
+    return ((world[i, 0] - points[j, 0]) * normals[j, 0] + (world[i, 1] - points[j, 1]) * normals[j, 1]
+            + (world[i, 2] - points[j, 2]) * normals[j, 2])
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def sample_rows(world, floor, element, known_violation, known_element, n_elements, activation,
+                max_rows, slack, reach, obj, voxels, planes, resampled):
+    """The clearance rows of gripper samples (see
+    :meth:`isf.clearance.ClearanceRepair._sample_rows`).
+
+    Args:
+        world, floor, element: the samples (M, 3) (object frame), their floors (M,), metres,
+            and geometry elements (M,).
+        known_violation, known_element: the state's other rows (K,).
+        n_elements, activation, max_rows: as for :func:`deepest_rows`.
+        slack: rounding allowance of the violation bounds, metres.
+        reach: samples farther than this from the object and outside it get no row, metres.
+        obj: the object's points, normals (N, 3) and :attr:`isf.nearest.NearestPoints.tree`.
+        voxels: ``(table, steps, lo, size)`` of :class:`isf.collision_voxels.SurfaceVoxels`,
+            or a table with no voxels (shape 0) when the object has none.
+        planes: the dense tangent planes' points, normals (P, 3), tree and neighbour count.
+        resampled: the dense planes are not the object's own points.
+
+    Returns:
+        (indices (R,) of the samples kept, their plane normals (R, 3), their violations (R,)).
+    """
+    obj_points, obj_normals, obj_tree = obj
+    m = len(world)
+    outside = np.zeros(m, np.bool_)
+    look = np.ones(m, np.bool_)
+    if voxels[0].size:  # outside by the voxels and beyond reach by their distance bound: no row
+        table, steps, lo, size = voxels
+        outside = _clear(table, lo, size, world, world)
+        below = _distance_below(steps, lo, size, world)
+        for i in range(m):
+            look[i] = not outside[i] or below[i] < reach
+    dist, nearest = np.full(m, np.inf), np.full(m, -1, np.int64)
+    rows = np.flatnonzero(look)
+    d, n = _query(world[rows], np.full(len(rows), -1, np.int64), reach * reach, obj_points, obj_tree)
+    dist[rows], nearest[rows] = d, n
+    far = np.flatnonzero((nearest < 0) & ~outside)  # beyond reach, maybe inside
+    if len(far):
+        d, n = _query(world[far], np.full(len(far), -1, np.int64), np.inf, obj_points, obj_tree)
+        dist[far], nearest[far] = d, n
+    close = np.empty(m, np.int64)
+    lower = np.empty(m)
+    n_close = 0
+    for i in range(m):
+        if nearest[i] < 0:
+            continue
+        h = _height(world, i, obj_points, obj_normals, nearest[i])
+        if dist[i] < reach or h < 0.0:
+            close[n_close], lower[n_close] = i, h
+            n_close += 1
+    close, lower = close[:n_close], lower[:n_close]
+    kept_world = world[close]
+    plane_points, plane_normals, plane_tree, k = planes
+    if resampled:  # the plane of the nearest dense point, one of the k
+        # the dense points begin with the object's own: its nearest point bounds the search
+        _, first = _query(kept_world, nearest[close], np.inf, plane_points, plane_tree)
+        for i in range(n_close):
+            lower[i] = _height(kept_world, i, plane_points, plane_normals, first[i])
+    floor, element = floor[close], element[close]
+    bound = floor - lower  # the samples' violations are at most this
+    violation, normals = np.empty(n_close), np.empty((n_close, 3))
+    exact = np.zeros(n_close, np.bool_)
+    # first the samples most likely to be kept (by their bound), then those still in doubt
+    for most_likely in (True, False):
+        candidates = np.flatnonzero(~exact)
+        done = np.flatnonzero(exact)
+        todo = undecided(bound[candidates], element[candidates],
+                         np.concatenate((violation[done], known_violation)),
+                         np.concatenate((element[done], known_element)), n_elements, activation,
+                         max_rows, slack)
+        candidates = candidates[todo]
+        if most_likely:
+            candidates = candidates[deepest_rows(bound[candidates], element[candidates], n_elements,
+                                                 np.inf, max_rows)]
+            candidates.sort()
+        height, plane, _, _ = _evaluate(kept_world[candidates], plane_points, plane_normals,
+                                        plane_tree, k)
+        for j in range(len(candidates)):
+            c = candidates[j]
+            violation[c] = floor[c] - height[j]
+            normals[c] = plane_normals[plane[j]]
+            exact[c] = True
+    keep = np.flatnonzero(exact)
+    return close[keep], normals[keep], violation[keep]
