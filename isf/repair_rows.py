@@ -5,7 +5,7 @@
 * :func:`undecided`: which rows whose violation is only bounded may still be among them, or
   be the most violated row of all (the others need not be computed);
 * :func:`sample_rows`: the clearance rows of gripper samples against the object's tangent
-  planes (:meth:`isf.clearance.ClearanceRepair._sample_rows` documents them), in one call.
+  planes (documented at ``isf.clearance.ClearanceRepair._sample_rows``), in one call.
 """
 
 from __future__ import annotations
@@ -104,8 +104,8 @@ def _height(world, i, points, normals, j):
 @njit(cache=True, nogil=True, error_model="numpy")
 def sample_rows(world, floor, element, known_violation, known_element, n_elements, activation,
                 max_rows, slack, reach, obj, voxels, planes, resampled):
-    """The clearance rows of gripper samples (see
-    :meth:`isf.clearance.ClearanceRepair._sample_rows`).
+    """The clearance rows of gripper samples against the object's tangent planes (documented at
+    ``isf.clearance.ClearanceRepair._sample_rows``).
 
     Args:
         world, floor, element: the samples (M, 3) (object frame), their floors (M,), metres,
