@@ -89,9 +89,9 @@ def warm_up() -> float:
     and for joints without compiled kinematics), asks for nearest points as the repair does,
     runs the repair's convex-element test, row selection and a small repair QP, the voxel
     tests, collision checks of a convex and a non-convex element against a mesh, apart and
-    pressed in, and the repair of the pressed-in state. When the kernels of the checks and the repair are not compiled yet and the
-    machine has a second core, a second process compiles them (into the same cache) while this
-    one compiles the engine's.
+    pressed in, and the repair of the pressed-in state. When the kernels of the checks and the
+    repair are not compiled yet and the machine has a second core, a second process compiles
+    them (into the same cache) while this one compiles the engine's.
     """
     start = time.perf_counter()
     helper = None

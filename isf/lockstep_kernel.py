@@ -42,7 +42,8 @@ from .moment_kernels import fit_errors, group_moments, link_poses, place, points
 from .nearest import search_scratch
 
 __all__ = ["CANDIDATES", "CONVERGED", "EMPTY", "FINISHED", "IDLE", "LOST_CONTACT", "MAX_ITERATIONS",
-           "PENDING", "ROUNDS", "RUNNING", "enter_level", "finish_round", "run", "score_state"]
+           "PENDING", "ROUNDS", "RUNNING", "enter_level", "finish_round", "plane_distance", "run",
+           "score_state"]
 
 EMPTY, RUNNING, CONVERGED, MAX_ITERATIONS, LOST_CONTACT = -1, 0, 1, 2, 3
 """Slot states (a free slot, a running fit, and the three ways a fit ends)."""
@@ -102,7 +103,7 @@ def _dot(a, i, b, j):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _plane_distance(points, i, targets, normals, j):
+def plane_distance(points, i, targets, normals, j):
     """``(points[i] - targets[j]) . normals[j]``: a point's signed distance from a tangent plane."""
     return ((points[i, 0] - targets[j, 0]) * normals[j, 0]
             + (points[i, 1] - targets[j, 1]) * normals[j, 1]
@@ -287,7 +288,7 @@ def finish_round(slots, history, grip, fit_params, pairs, state):
     points, _ = points_in_object(Tc, Rc, pc, pair_fit, pair_link, pair_points, pair_normals)
     distance = np.zeros(len(fits))
     for k in range(len(pair_fit)):
-        distance[pair_fit[k]] += abs(_plane_distance(points, k, targets, target_normals, k))
+        distance[pair_fit[k]] += abs(plane_distance(points, k, targets, target_normals, k))
     max_iterations, tolerance = fit_params[1], fit_params[2]
     ended = 0
     for f in range(len(fits)):
@@ -409,7 +410,7 @@ def score_state(T, R, p, grip, obj, fit_params, alpha, x0, radius, candidates, v
         if not keep[i]:
             continue
         t = target[i]
-        d = _plane_distance(points, i, obj_points, obj_normals, t)
+        d = plane_distance(points, i, obj_points, obj_normals, t)
         c = _dot(normals, i, obj_normals, t) + 1.0
         distance += abs(d)
         misalignment += np.arccos(min(max(1.0 - c, -1.0), 1.0))

@@ -15,6 +15,7 @@ from numba import njit
 
 from .collision_surface import _evaluate
 from .collision_voxels import _clear, _distance_below
+from .lockstep_kernel import plane_distance
 from .nearest import _query
 
 __all__ = ["deepest_rows", "sample_rows", "undecided"]
@@ -94,13 +95,6 @@ def undecided(bound, bound_element, violation, element, n_elements, activation, 
     return out
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _height(world, i, points, normals, j):
-    """``(world[i] - points[j]) . normals[j]``, summed in coordinate order."""
-    return ((world[i, 0] - points[j, 0]) * normals[j, 0] + (world[i, 1] - points[j, 1]) * normals[j, 1]
-            + (world[i, 2] - points[j, 2]) * normals[j, 2])
-
-
 @njit(cache=True, nogil=True, error_model="numpy")
 def sample_rows(world, floor, element, known_violation, known_element, n_elements, activation,
                 max_rows, slack, reach, obj, voxels, planes, resampled):
@@ -147,7 +141,7 @@ def sample_rows(world, floor, element, known_violation, known_element, n_element
     for i in range(m):
         if nearest[i] < 0:
             continue
-        h = _height(world, i, obj_points, obj_normals, nearest[i])
+        h = plane_distance(world, i, obj_points, obj_normals, nearest[i])
         if dist[i] < reach or h < 0.0:
             close[n_close], lower[n_close] = i, h
             n_close += 1
@@ -158,7 +152,7 @@ def sample_rows(world, floor, element, known_violation, known_element, n_element
         # the dense points begin with the object's own: its nearest point bounds the search
         _, first = _query(kept_world, nearest[close], np.inf, plane_points, plane_tree)
         for i in range(n_close):
-            lower[i] = _height(kept_world, i, plane_points, plane_normals, first[i])
+            lower[i] = plane_distance(kept_world, i, plane_points, plane_normals, first[i])
     floor, element = floor[close], element[close]
     bound = floor - lower  # the samples' violations are at most this
     violation, normals = np.empty(n_close), np.empty((n_close, 3))
