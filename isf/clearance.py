@@ -67,6 +67,7 @@ import scipy.sparse as sp
 
 from .collision import Plane, object_voxels
 from .collision_surface import NEIGHBOURS
+from .collision_voxels import kernel_arrays
 from .config import FitConfig
 from .correspondence import match_many
 from .dense_qp import solve_dense_qp
@@ -88,8 +89,6 @@ _MM = 1000.0  # QP length unit: millimetres per metre
 _CONVEX_REACH = 0.003  # object points this close to a convex element (beyond its floor) get rows, m
 _OUTLIER_FACTOR = 3.0  # pull mode: pairs farther than this times the median distance are dropped
 _BOUND_SLACK = 1e-12  # rounding allowance on the bounds of a sample's violation, m
-_NO_VOXELS = (np.zeros((0, 0, 0), np.int64), np.zeros((0, 0, 0), np.int32), np.zeros(3), 1.0)
-"""The voxel arrays of :func:`isf.repair_rows.sample_rows` for an object without voxels."""
 _NO_CONTACT = (np.empty((0, 3)), np.empty((0, 3)), np.empty((0, 3)), np.empty(0, dtype=int))
 
 
@@ -226,9 +225,7 @@ class ClearanceRepair:
         rng = np.random.default_rng(0)  # the object's resampling, then the gripper's samples
         self._planes, self._grid, self._resampled = object_side(obj, cfg.object_spacing, rng)
         self._voxels = object_voxels(obj)  # inside/outside of a closed mesh object, else None
-        voxels = self._voxels
-        self._voxel_arrays = _NO_VOXELS if voxels is None else (
-            voxels.table, voxels.steps, voxels.lo, voxels.size)
+        self._voxel_arrays = kernel_arrays(self._voxels)
         (self._frames, self._points_link, self._element, self._owner, self._floor,
          self._sphere_owner, self._sphere_centre, self._sphere_radius, self._convex) = gripper_side(
             gripper, cfg.sample_spacing, cfg.max_samples, cfg.margin, cfg.contact_allowance, rng)

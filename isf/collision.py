@@ -90,7 +90,7 @@ from numba import njit
 from .collision_elements import Element, even_samples, point_triangle_distance
 from .collision_kernel import PREDICTION_ERROR, PREDICTION_SLOPE, check_elements, reverse_clearance
 from .collision_surface import NEIGHBOURS, TangentPlanes, closed_mesh, mesh_memo
-from .collision_voxels import SurfaceVoxels
+from .collision_voxels import SurfaceVoxels, kernel_arrays
 from .exceptions import GripperDescriptionError, InvalidInputError
 from .gripper import Gripper
 from .object_surface import ObjectSurface
@@ -260,7 +260,6 @@ class CollisionChecker:
         # Distance from the object's surface to its nearest sample, at most (a generous guess:
         # random samples leave gaps a few spacings wide; 0 for a bare point cloud).
         self._cover = 3.0 * self._surface.spacing if obj.is_mesh else 0.0
-        voxels = self._voxels
         self._kernel_args = (
             (np.array([p.normal for p in self.obstacles]).reshape(-1, 3),
              np.array([p.offset for p in self.obstacles], dtype=float)),
@@ -269,8 +268,7 @@ class CollisionChecker:
             (self._surface.points, self._surface.normals, self._surface.tree.tree, self._lo, self._hi,
              self._cover, min(NEIGHBOURS, len(self._surface.points))),
             _probe_grid(self._points),
-            (False, np.zeros((1, 1, 1), np.int64), np.zeros((1, 1, 1), np.int32), np.zeros(3), 1.0)
-            if voxels is None else (True, voxels.table, voxels.steps, voxels.lo, voxels.size),
+            kernel_arrays(self._voxels),
             tuple(packed[name] for name in _INTERIOR_ARRAYS))
         self.estimates = 0
         """Exact tangent-plane estimates of the object's surface made by the checks so far (a

@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["SurfaceVoxels"]
+__all__ = ["SurfaceVoxels", "kernel_arrays"]
 
 MIN_VOXEL = 0.001  # m
 MAX_VOXELS = 1 << 17  # the voxel grows beyond MIN_VOXEL to keep the grid this small
@@ -206,3 +206,12 @@ class SurfaceVoxels:
         """A lower bound of each point's (M, 3) distance to the mesh, metres (M,)."""
         return _distance_below(self.steps, self.lo, self.size,
                                np.ascontiguousarray(points, dtype=np.float64))
+
+
+def kernel_arrays(voxels: SurfaceVoxels | None) -> tuple:
+    """``(present, table, steps, lo, size)`` of ``voxels`` for compiled callers (the arrays of
+    :class:`SurfaceVoxels`); for None, ``present`` is False and the arrays are placeholders of
+    the same types (so the kernels compile once)."""
+    if voxels is None:
+        return False, np.zeros((1, 1, 1), np.int64), np.zeros((1, 1, 1), np.int32), np.zeros(3), 1.0
+    return True, voxels.table, voxels.steps, voxels.lo, voxels.size

@@ -135,7 +135,7 @@ def _warm_checks() -> None:
     points = np.random.default_rng(0).uniform(-0.01, 0.01, (50, 3))
     search = NearestPoints(points)
     search.query_k(points[:2], 6)
-    search.query_within(points[:2], 0.01)  # the repair's near samples
+    search.query_within(points[:2], 0.01)  # a bounded search
     box = trimesh.creation.box(extents=(0.01, 0.01, 0.01))
     ConvexElements([(box.vertices, box.faces)], np.zeros(1), np.zeros(1)).rows(
         np.eye(4), np.eye(3)[None], np.zeros((1, 3)), PointGrid(points, 0.004), 0.003, 12)

@@ -109,8 +109,7 @@ def sample_rows(world, floor, element, known_violation, known_element, n_element
         slack: rounding allowance of the violation bounds, metres.
         reach: samples farther than this from the object and outside it get no row, metres.
         obj: the object's points, normals (N, 3) and :attr:`isf.nearest.NearestPoints.tree`.
-        voxels: ``(table, steps, lo, size)`` of :class:`isf.collision_voxels.SurfaceVoxels`,
-            or a table with no voxels (shape 0) when the object has none.
+        voxels: :func:`isf.collision_voxels.kernel_arrays` of the object's voxels.
         planes: the dense tangent planes' points, normals (P, 3), tree and neighbour count.
         resampled: the dense planes are not the object's own points.
 
@@ -121,8 +120,8 @@ def sample_rows(world, floor, element, known_violation, known_element, n_element
     m = len(world)
     outside = np.zeros(m, np.bool_)
     look = np.ones(m, np.bool_)
-    if voxels[0].size:  # outside by the voxels and beyond reach by their distance bound: no row
-        table, steps, lo, size = voxels
+    present, table, steps, lo, size = voxels
+    if present:  # outside by the voxels and beyond reach by their distance bound: no row
         outside = _clear(table, lo, size, world, world)
         below = _distance_below(steps, lo, size, world)
         for i in range(m):
