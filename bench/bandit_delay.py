@@ -1,7 +1,7 @@
 """Does planning several samples at once cost the regret bandit grasps? Paired collision-free counts.
 
 With ``batch_size=B`` (lockstep) or ``workers=W`` (threads) the regret sampler hears each outcome
-up to B - 1 (W - 1) samples late. This script runs the Table I set (``bench/table1.py``'s
+up to B - 1 (2W - 1) samples late. This script runs the Table I set (``bench/table1.py``'s
 objects, gripper, sampler and paper settings: random orientations, no repair) for every seed in
 ``--seeds`` in each mode of ``--modes`` (a batch size, or ``wN`` for N worker threads) and
 prints, per object, the mean collision-free count and mean fitting error per mode and the mean

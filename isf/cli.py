@@ -45,7 +45,7 @@ def _parser() -> argparse.ArgumentParser:
                    help=f"samples fitted at once in lockstep (default {BATCH_SIZE}: the paper's sequential loop)")
     p.add_argument("--workers", "-j", type=int, default=1, metavar="W",
                    help="threads that fit, check and repair samples side by side (default 1); the "
-                        "sampler then learns each outcome up to W-1 samples late")
+                        "sampler then learns each outcome up to 2W-1 samples late")
     p.add_argument("--units", choices=("m", "cm", "mm"), default="m", help="units of the object file (default m)")
     p.add_argument("--scale", type=float, default=1.0, help="extra scale factor for the object")
     p.add_argument("--table", type=float, default=None, metavar="Z",

@@ -18,10 +18,12 @@ there for samplers that propose in batches.
 With ``workers = W > 1`` the samples run on W threads (the compiled fitting, checking and
 repair release Python's GIL, so the threads share the cores): each thread fits, checks and
 repairs one sample at a time (:class:`isf.evaluation.SampleWorker`). Samples are proposed in
-order with at most W in flight, and their outcomes are reported to the sampler in order, so
-sample ``i + W`` is proposed once sample ``i`` is observed: the sampler learns every outcome at
-most ``W - 1`` samples late, and the plan depends on W and the seed but not on the threads'
-timing. Each fit is the fit it would be alone.
+order with at most ``SAMPLES_PER_WORKER * W`` in flight (``2W``), and their outcomes are
+reported to the sampler in order, so sample ``i + 2W`` is proposed once sample ``i`` is
+observed: the sampler learns every outcome at most ``2W - 1`` samples late, and the plan
+depends on W and the seed but not on the threads' timing. The window is twice the threads so
+that a thread whose sample ended early takes the next one instead of waiting for a slower
+sample ahead of it to be observed. Each fit is the fit it would be alone.
 
 A fitted grasp that collides is repaired once (``repair_collisions``, on by default;
 :mod:`isf.clearance`): the links that penetrate are pushed out while the contact surfaces
@@ -60,6 +62,10 @@ __all__ = ["Grasp", "PlanResult", "PlanStats", "plan"]
 BATCH_SIZE = 1
 """Default number of samples fitted at once by :func:`plan`: one, the paper's sequential loop
 (see the module docstring)."""
+
+SAMPLES_PER_WORKER = 2
+"""Samples :func:`plan` keeps in flight per worker thread when ``workers > 1`` (see the module
+docstring)."""
 
 NO_CONTACT_ERROR = 0.05
 """Error reported to samplers for a fit where some contact surface does not touch the object, metres."""
@@ -313,9 +319,9 @@ def _in_lockstep(sampler: Sampler, rng: np.random.Generator, samples: int, batch
 
 def _in_threads(sampler: Sampler, rng: np.random.Generator, samples: int,
                 workers: list[SampleWorker], record: Callable) -> None:
-    """The samples on ``len(workers)`` threads: proposed in order, at most one per worker in
-    flight, and observed in order, so the sampler sees what it would see with that window
-    whatever the threads' timing."""
+    """The samples on ``len(workers)`` threads: proposed in order, at most
+    :data:`SAMPLES_PER_WORKER` per worker in flight, and observed in order, so the sampler sees
+    what it would see with that window whatever the threads' timing."""
     idle: queue.SimpleQueue[SampleWorker] = queue.SimpleQueue()
     for worker in workers:
         idle.put(worker)
@@ -332,7 +338,8 @@ def _in_threads(sampler: Sampler, rng: np.random.Generator, samples: int,
     with ThreadPoolExecutor(len(workers), thread_name_prefix="isf-plan") as pool:
         try:
             while pending or proposed < samples:
-                while proposed < samples and len(pending) < _slots(sampler, len(workers)):
+                while proposed < samples and len(pending) < _slots(
+                        sampler, SAMPLES_PER_WORKER * len(workers)):
                     (proposal,) = sampler.propose(1, rng)
                     pending.append((proposed, proposal, pool.submit(evaluate, proposal)))
                     proposed += 1

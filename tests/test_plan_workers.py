@@ -23,7 +23,8 @@ def block():
 
 
 def _window_reference(gripper, obj, samples, seed, window):
-    """The protocol of ``workers=window``, in one thread, from ``isf.fit``, the collision checker
+    """The protocol of ``workers=W`` (``window`` = 1 for W = 1, else ``SAMPLES_PER_WORKER * W``),
+    in one thread, from ``isf.fit``, the collision checker
     and the repair: proposals in order with at most ``window`` awaiting their outcome, outcomes
     reported in order. Returns the grasps by sample index and the number of repairs that were
     kept."""
@@ -67,7 +68,8 @@ def _by_index(result):
 @pytest.mark.parametrize("workers", [1, 2, 3])
 def test_workers_give_the_window_protocol_grasps(hand, block, workers):
     samples = 9
-    expected, kept_repairs = _window_reference(hand, block, samples, seed=2, window=workers)
+    window = 1 if workers == 1 else isf.planner.SAMPLES_PER_WORKER * workers
+    expected, kept_repairs = _window_reference(hand, block, samples, seed=2, window=window)
     assert kept_repairs >= 1  # the repair path ran and was used
     result = isf.plan(hand, block, samples=samples, seed=2, workers=workers, working_spacing=None)
     assert result.stats.workers == workers and result.stats.samples == samples
@@ -80,6 +82,34 @@ def test_workers_give_the_window_protocol_grasps(hand, block, workers):
         assert grasp.fit.mean_distance == fit.mean_distance
         assert grasp.collision_free == report.collision_free
         assert grasp.collision.penetration == report.penetration
+
+
+@pytest.mark.parametrize("workers, window", [(1, 1), (2, 4), (3, 6)])
+def test_the_sampler_hears_each_outcome_at_most_window_minus_one_samples_late(
+        hand, block, workers, window):
+    """At proposal i the sampler has seen exactly the outcomes of samples 0 .. i - window, in
+    order, whatever the threads' timing (a sampler that sets no in-flight limit)."""
+    from isf.samplers import UniformSampler
+
+    class Counting(UniformSampler):
+        name = "counting"
+
+        def reset(self, obj, gripper, rng):
+            super().reset(obj, gripper, rng)
+            self.seen_at_proposal, self.observed = [], []
+
+        def propose(self, n, rng):
+            self.seen_at_proposal.append(len(self.observed))
+            return [isf.Proposal(p.T_object_gripper, p.q, {"index": len(self.seen_at_proposal) - 1})
+                    for p in super().propose(n, rng)]
+
+        def observe(self, outcomes):
+            self.observed += [o.proposal.record["index"] for o in outcomes]
+
+    sampler, samples = Counting(), 10
+    isf.plan(hand, block, samples=samples, seed=3, sampler=sampler, workers=workers)
+    assert sampler.observed == list(range(samples))
+    assert sampler.seen_at_proposal == [max(0, i - window + 1) for i in range(samples)]
 
 
 def test_one_worker_is_the_sequential_loop(hand, block):
