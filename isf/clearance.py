@@ -77,9 +77,10 @@ from .lockstep import score_fit
 from .object_surface import ObjectSurface
 from .repair_geometry import gripper_side, object_side
 from .repair_rows import deepest_rows, sample_rows
+from .repair_step import motion_rows, step_qp, to_object
 from .result import FitResult
+from .se3 import exp_so3
 from .segments import Segments
-from .se3 import cross, exp_so3
 
 __all__ = ["ClearanceRepair", "RepairConfig", "RepairResult", "repair_penetration"]
 
@@ -253,20 +254,6 @@ class ClearanceRepair:
         k = self.gripper.frame_kinematics_many(q[None], frames)
         return k.rotations[0], k.positions[0], np.concatenate([k.J_linear[0], k.J_angular[0]], axis=1)
 
-    @staticmethod
-    def _points_and_rows(points_link, owner, R, p, J, T, centre, normals):
-        """Object-frame points (M, 3) and their rows ``n^T A`` (M, 6 + n) for object-frame normals.
-
-        ``A`` maps ``x = (v, w, dq)`` to the point's motion ``v + w x (p - centre) + R J dq``.
-        """
-        r = np.einsum("mij,mj->mi", R[owner], points_link)  # from the link origins, gripper frame
-        world = (r + p[owner]) @ T[:3, :3].T + T[:3, 3]
-        n_g = normals @ T[:3, :3]  # the normals in the gripper frame
-        Jv, Jw = J[owner, :3], J[owner, 3:]
-        rows_q = np.einsum("mi,min->mn", n_g, Jv) + np.einsum("mi,min->mn", cross(r, n_g), Jw)
-        rows = np.hstack([normals, cross(world - centre, normals), rows_q])
-        return world, rows
-
     # ------------------------------------------------------------ object side
     def _sample_rows(self, world: np.ndarray, floor: np.ndarray, element: np.ndarray,
                      known: _Rows) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -379,9 +366,9 @@ class ClearanceRepair:
             active = self._active_rows(rows.violation, rows.element)
             owner, local = rows.owner[active], rows.local[active]
             centre = contact[0].mean(axis=0) if len(contact[0]) else \
-                _to_object(T, R, p, owner, local).mean(axis=0)
+                to_object(T, R, p, owner, local).mean(axis=0)
             c_rows = self._contact_jacobian_rows(T, q, contact, centre)
-            _, a_rows = self._points_and_rows(local, owner, R, p, J, T, centre, rows.normal[active])
+            a_rows = motion_rows(T, R, p, J, owner, local, centre, rows.normal[active])
             x = self._solve(c_rows, contact, a_rows, rows.violation[active], rows.element[active],
                             q)
             if x is None:
@@ -394,7 +381,7 @@ class ClearanceRepair:
         """Indices of the gripper samples of elements that may be within ``activation`` of the
         object (their bounding sphere is close to it, or their centre lies inside it)."""
         obj, owner = self.object, self._sphere_owner
-        centres = _to_object(T, R, p, owner, self._sphere_centre)
+        centres = to_object(T, R, p, owner, self._sphere_centre)
         dist, idx = obj.nearest(centres)
         inside = np.einsum("ei,ei->e", centres - obj.points[idx], obj.normals[idx]) < 0.0
         reach = self._sphere_radius + self.config.activation + self.config.margin \
@@ -414,14 +401,14 @@ class ClearanceRepair:
             known += self._convex_rows(T, R, p)
         if self.obstacles:  # every sample of every element stays above each plane
             owner, local = self._owner, self._points_link
-            world = _to_object(T, R, p, owner, local)
+            world = to_object(T, R, p, owner, local)
             for plane in self.obstacles:
                 known.append(_Rows(owner, local, np.broadcast_to(plane.normal, local.shape),
                                    self.config.margin - plane.height(world), self._element))
         known = _Rows(*(np.concatenate(v) for v in zip(*known))) if known else _NO_ROWS
         sel = self._near_samples(T, R, p)
         owner, local, element = self._owner[sel], self._points_link[sel], self._element[sel]
-        world = _to_object(T, R, p, owner, local)
+        world = to_object(T, R, p, owner, local)
         keep, normals, violation = self._sample_rows(world, self._floor[sel], element, known)
         samples = _Rows(owner[keep], local[keep], normals, violation, element[keep])
         return _Rows(*(np.concatenate(v) for v in zip(samples, known)))
@@ -477,50 +464,27 @@ class ClearanceRepair:
     def _contact_jacobian_rows(self, T, q, contact, centre):
         """Rows ``m^T A`` (K, 6 + n) of the kept contact points."""
         g = self.gripper
-        points, _, plane_n, sel = contact
+        _, _, plane_n, sel = contact
         if not len(sel):
             return np.empty((0, 6 + g.n_joints))
         R, p, J = self._frame_jacobians(q, self._contact_frames)
-        owner = g.point_link[sel]
-        return self._points_and_rows(g.points_link[sel], owner, R, p, J, T, centre, plane_n)[1]
+        return motion_rows(T, R, p, J, g.point_link[sel], g.points_link[sel], centre, plane_n)
 
     def _qp(self, c_rows, contact, a_rows, violation, element, q):
-        """The step's QP ``min 1/2 z^T H z + f^T z, lo <= A z <= hi`` over ``z = (x_mm, s)``.
+        """The step's QP ``min 1/2 z^T H z + f^T z, lo <= A z <= hi`` over ``z = (x_mm, s)``
+        (:func:`isf.repair_step.step_qp`).
 
         Returns:
             (H, f, A, lo, hi, scale): ``x_mm = x * scale`` (millimetre units), ``s`` the slacks.
         """
-        cfg = self.config
-        nx = len(self._scale)
-        m = len(a_rows)
-        unit = self._unit
         points, plane_o, plane_n, _ = contact
-        k = len(points)
-        P = np.zeros((nx, nx))
-        qv = np.zeros(nx)
-        if k:
-            B = c_rows * unit  # mm of residual per unit of x_mm
-            res = _MM * np.einsum("ij,ij->i", points - plane_o, plane_n)
-            P += 2.0 * cfg.contact_weight * B.T @ B
-            qv += 2.0 * cfg.contact_weight * B.T @ res
-        P += self._regularisation
-        # one slack per geometry element: n^T A x + s_e >= violation, s_e >= 0
-        elements, which = np.unique(element, return_inverse=True)
-        ns = len(elements)
-        H = np.zeros((nx + ns, nx + ns))
-        H[:nx, :nx] = P
-        H[nx:, nx:] = 2.0 * cfg.slack_weight * np.eye(ns)
-        f = np.concatenate([qv, np.zeros(ns)])
-        A = np.zeros((m + ns + nx, nx + ns))
-        A[:m, :nx] = a_rows * unit
-        A[np.arange(m), nx + which] = 1.0
-        A[np.arange(m, m + ns + nx), np.r_[nx:nx + ns, 0:nx]] = 1.0
-        step, joints = self._step, self._scale[6:]
-        g = self.gripper
+        residual = _MM * np.einsum("ij,ij->i", points - plane_o, plane_n)
+        step, joints, g = self._step, self._scale[6:], self.gripper
         lo = np.minimum(0.0, np.maximum(-step[6:], (g.lower - q) * joints))
         hi = np.maximum(0.0, np.minimum(step[6:], (g.upper - q) * joints))
-        lower = np.concatenate([violation * _MM, np.zeros(ns), -step[:6], lo])
-        upper = np.concatenate([np.full(m + ns, np.inf), step[:6], hi])
+        H, f, A, lower, upper = step_qp(
+            c_rows, residual, a_rows, violation * _MM, element, self._unit, self._regularisation,
+            self.config.contact_weight, self.config.slack_weight, step[:6], lo, hi)
         return H, f, A, lower, upper, self._scale
 
     def _solve(self, c_rows, contact, a_rows, violation, element, q) -> np.ndarray | None:
@@ -552,16 +516,6 @@ class ClearanceRepair:
         T_new[:3, :3] = Rw @ T[:3, :3]
         T_new[:3, 3] = Rw @ (T[:3, 3] - centre) + centre + x[:3]
         return T_new, g.clip(q + x[6:])
-
-
-def _to_object(T: np.ndarray, R: np.ndarray, p: np.ndarray, owner: np.ndarray,
-               local: np.ndarray) -> np.ndarray:
-    """Object-frame positions (M, 3) of points ``local`` (M, 3) given in the frames of links
-    ``owner`` (M,), whose rotations ``R`` (L, 3, 3) and origins ``p`` (L, 3) are in the gripper
-    frame, for the palm pose ``T`` (4, 4)."""
-    rotation = T[:3, :3] @ R  # the links' rotations in the object frame
-    origin = p @ np.ascontiguousarray(T[:3, :3].T) + T[:3, 3]
-    return np.einsum("mij,mj->mi", rotation[owner], local) + origin[owner]
 
 
 def _solve_osqp(H, f, A, lower, upper) -> np.ndarray | None:

@@ -18,6 +18,7 @@ from isf.collision_surface import NEIGHBOURS
 from isf.convex_elements import ConvexElements
 from isf.point_grid import PointGrid
 from isf.repair_rows import deepest_rows, undecided
+from isf.repair_step import to_object
 
 ACTIVATION, MAX_ROWS = 0.008, 12
 
@@ -138,8 +139,7 @@ def reference_violations(repairer: ClearanceRepair, T, R, p):
     obj, cfg = repairer.object, repairer.config
     sel = repairer._near_samples(T, R, p)
     owner, local = repairer._owner[sel], repairer._points_link[sel]
-    rotation = T[:3, :3] @ R
-    world = np.einsum("mij,mj->mi", rotation[owner], local) + (p @ T[:3, :3].T + T[:3, 3])[owner]
+    world = to_object(T, R, p, owner, local)  # the samples where the repair places them
     dist, _ = obj.nearest(world)
     inside = trimesh.Trimesh(obj.mesh_vertices, obj.mesh_faces).contains(world)
     close = np.flatnonzero(inside | (dist < cfg.activation + cfg.margin + 2 * obj.spacing))
