@@ -520,7 +520,7 @@ class ClearanceRepair:
 
 def _solve_osqp(H, f, A, lower, upper) -> np.ndarray | None:
     """OSQP's answer to ``min 1/2 z^T H z + f^T z, lower <= A z <= upper``, or None on failure."""
-    solver = osqp.OSQP()
+    solver = osqp.OSQP(algebra="builtin")  # as isf.finger_step: no backend probing
     solver.setup(sp.csc_matrix(np.triu(H)), f, sp.csc_matrix(A), lower, upper, verbose=False,
                  eps_abs=1e-3, eps_rel=1e-3, max_iter=4000, polishing=False)
     result = solver.solve(raise_error=False)

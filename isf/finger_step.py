@@ -60,7 +60,10 @@ class FingerStepQP:
             # A dense upper-triangle pattern (explicit ones): later Px updates must
             # have the same length, and csc_matrix(dense) would drop exact zeros.
             P = sp.csc_matrix((np.ones(len(self._rows)), self._rows, indptr), shape=(n, n))
-            self._solver = osqp.OSQP()
+            # the builtin algebra, named: the default probes for the CUDA and MKL backends
+            # by failing imports on every construction (about 0.7 ms), and would take
+            # whichever is installed, so the steps would depend on the machine
+            self._solver = osqp.OSQP(algebra="builtin")
             self._solver.setup(
                 P, np.zeros(n), sp.identity(n, format="csc"), -np.ones(n), np.ones(n),
                 verbose=False, eps_abs=1e-10, eps_rel=1e-10, polishing=False, max_iter=self.max_iter,
