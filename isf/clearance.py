@@ -19,9 +19,9 @@ Pinocchio's frame Jacobian of its link, gripper frame).
 * Contact rows (least squares, weight ``contact_weight``): contact-surface points ``c_k`` on the
   tangent plane ``(o_k, m_k)`` of their nearest object point, like the fit's point-to-plane rows.
   In ``pull`` mode (the default) every surface is matched afresh in each step (each surface on
-  its own: :func:`isf.correspondence.match_many` with the surfaces as groups), so pads that
-  touch stay on the object and a pad the repair lifts off is drawn back; ``hold`` keeps the
-  points touching at the start.
+  its own, the pairs of :func:`isf.correspondence.match_many` with the surfaces as groups,
+  compiled in :mod:`isf.repair_contacts`), so pads that touch stay on the object and a pad the
+  repair lifts off is drawn back; ``hold`` keeps the points touching at the start.
 * Clearance rows (inequalities), two kinds:
 
   - points sampled on every link's geometry, against the object tangent plane ``(a_i, n_i)``
@@ -69,12 +69,12 @@ from .collision import Plane, object_voxels
 from .collision_surface import NEIGHBOURS
 from .collision_voxels import kernel_arrays
 from .config import FitConfig
-from .correspondence import match_many
 from .dense_qp import solve_dense_qp
 from .exceptions import ConfigError, GripperDescriptionError
 from .gripper import Gripper
 from .lockstep import score_fit
 from .object_surface import ObjectSurface
+from .repair_contacts import contact_pairs
 from .repair_geometry import gripper_side, object_side
 from .repair_rows import deepest_rows, sample_rows
 from .repair_step import motion_rows, step_qp, to_object
@@ -213,6 +213,9 @@ class ClearanceRepair:
 
     Raises:
         GripperDescriptionError: the gripper has no link geometry.
+
+    A repairer remembers each contact point's last nearest object point (to start the next
+    search from), so give each thread its own (as :class:`isf.evaluation.SampleJudge` does).
     """
 
     def __init__(self, gripper: Gripper, obj: ObjectSurface, config: RepairConfig | None = None,
@@ -233,6 +236,10 @@ class ClearanceRepair:
         self._contact_frames = np.array([gripper.model.getFrameId(link)
                                          for link in gripper.contact_links], dtype=int)
         self._surfaces = Segments(gripper.point_surface)  # contact points grouped by surface
+        self._contact = (gripper.point_link.astype(np.int64), gripper.points_link,
+                         gripper.normals_link)
+        self._contact_guess = np.full(gripper.n_points, -1, np.int64)  # pull mode's last answers
+        self._cos_limit = -np.cos(cfg.max_normal_angle) if cfg.max_normal_angle < np.pi else np.inf
         # Millimetre units in the QP: x_mm = x * scale (v in mm, w in rad, revolute dq in rad,
         # prismatic in mm); a row a (metres of height per SI unit of x) becomes a * unit (mm
         # per unit of x_mm).
@@ -437,7 +444,7 @@ class ClearanceRepair:
             T, q: the state.
             held: indices of the contact points to hold; None selects them.
             pull: select every contact point that matches the object like a fit's pairs
-                (:func:`isf.correspondence.match_many`, each surface a group, with
+                (:func:`isf.repair_contacts.contact_pairs`: each surface a group, with
                 ``contact_reach`` as the outlier floor); else those within ``contact_reach``
                 whose normals face the object normal.
 
@@ -445,15 +452,17 @@ class ClearanceRepair:
             (object-frame points (K, 3), plane points (K, 3), plane normals (K, 3), indices (K,)).
         """
         cfg, g, obj = self.config, self.gripper, self.object
+        if pull and held is None:  # each surface on its own: a pad that lost contact is drawn back
+            R, p, _ = self._frame_jacobians(q, self._contact_frames)
+            source, points, target = contact_pairs(
+                T, R, p, self._contact, self._surfaces.starts,
+                (obj.points, obj.normals, obj.search.tree), self._contact_guess, _OUTLIER_FACTOR,
+                cfg.contact_reach, self._cos_limit)
+            target = target[source]
+            return points[source], obj.points[target], obj.normals[target], source
         points, normals = g.contact_points(q)
         points = points @ T[:3, :3].T + T[:3, 3]
         normals = normals @ T[:3, :3].T
-        if pull and held is None:  # each surface on its own: a pad that lost contact is drawn back
-            pairs = match_many(obj, points, self._surfaces, outlier_factor=_OUTLIER_FACTOR,
-                               outlier_floor=cfg.contact_reach, reject_duplicates=True,
-                               normals=normals, max_normal_angle=cfg.max_normal_angle)
-            source, target = pairs.source, pairs.target
-            return points[source], obj.points[target], obj.normals[target], source
         dist, idx = obj.nearest(points)
         if held is None:
             cos = np.einsum("ij,ij->i", normals, obj.normals[idx])

@@ -39,6 +39,7 @@ def test_warm_up_covers_every_kernel_call_of_a_plan():
         "isf.dense_qp._dual_active_set", "isf.collision_kernel.check_elements",
         "isf.collision_kernel.reverse_clearance", "isf.collision._rigid",
         "isf.repair_step.to_object", "isf.repair_step.motion_rows", "isf.repair_step.step_qp",
+        "isf.repair_contacts.contact_pairs",
     }
     assert entry_points <= {name for name, n in before.items() if n}  # compiled by warm_up
     assert after == before  # and a plan compiled nothing more
