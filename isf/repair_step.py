@@ -6,9 +6,9 @@
 * :func:`step_qp`: the step's QP (contact least squares, regularisation, one slack per
   geometry element, clearance rows, trust region and joint limits).
 
-Units: SI in and out, except the QP, which is in millimetres (documented at
-:meth:`isf.clearance.ClearanceRepair._qp`). The functions release the GIL, so worker threads
-repairing side by side overlap.
+Units: SI in and out, except the QP, which is in millimetres (the repair scales its
+variables, see ``isf.clearance.ClearanceRepair``). The functions release the GIL, so worker
+threads repairing side by side overlap.
 """
 
 from __future__ import annotations
