@@ -61,7 +61,7 @@ class FingerStepQP:
             # have the same length, and csc_matrix(dense) would drop exact zeros.
             P = sp.csc_matrix((np.ones(len(self._rows)), self._rows, indptr), shape=(n, n))
             # the builtin algebra, named: the default probes for the CUDA and MKL backends
-            # by failing imports on every construction (about 0.7 ms), and would take
+            # by failing imports on every construction (about 0.26 ms), and would take
             # whichever is installed, so the steps would depend on the machine
             self._solver = osqp.OSQP(algebra="builtin")
             self._solver.setup(
