@@ -13,8 +13,9 @@ import numpy as np
 from numba import njit
 
 from .correspondence import _filter_pairs
+from .lockstep_kernel import _dot
+from .moment_kernels import link_poses, place
 from .nearest import nearest_point, search_scratch
-from .repair_step import _link_frames
 
 __all__ = ["contact_pairs"]
 
@@ -45,25 +46,19 @@ def contact_pairs(T, R, p, contact, surface_starts, obj, guess, outlier_factor, 
     """
     point_link, points_link, normals_link = contact
     obj_points, obj_normals, tree = obj
-    rotation, origin = _link_frames(T, R, p)
+    A, a = np.empty((len(R), 3, 3)), np.empty((len(R), 3))
+    link_poses(T, R, p, A, a)
     n = len(point_link)
-    points = np.empty((n, 3))
+    points, normals = np.empty((n, 3)), np.empty((n, 3))
     dist, target = np.empty(n), np.empty(n, np.int64)
     compatible = np.empty(n, np.bool_)
     scratch = search_scratch()
     for i in range(n):
-        A, a = rotation[point_link[i]], origin[point_link[i]]
-        normal = np.empty(3)
-        for j in range(3):
-            points[i, j] = (A[j, 0] * points_link[i, 0] + A[j, 1] * points_link[i, 1]
-                            + A[j, 2] * points_link[i, 2] + a[j])
-            normal[j] = (A[j, 0] * normals_link[i, 0] + A[j, 1] * normals_link[i, 1]
-                         + A[j, 2] * normals_link[i, 2])
+        place(A, a, point_link[i], points_link, normals_link, i, points, normals, i)
         t, d2 = nearest_point(points[i, 0], points[i, 1], points[i, 2], guess[i], obj_points,
                               tree, scratch, np.inf)
         guess[i], target[i], dist[i] = t, t, np.sqrt(d2)
-        compatible[i] = (normal[0] * obj_normals[t, 0] + normal[1] * obj_normals[t, 1]
-                         + normal[2] * obj_normals[t, 2]) <= cos_limit
+        compatible[i] = _dot(normals, i, obj_normals, t) <= cos_limit
     keep = _filter_pairs(dist, target, surface_starts, surface_starts, outlier_factor,
                          outlier_floor, compatible, True)
     return np.flatnonzero(keep), points, target

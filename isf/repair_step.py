@@ -16,23 +16,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .moment_kernels import link_poses
+
 __all__ = ["motion_rows", "step_qp", "to_object"]
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _link_frames(T, R, p):
-    """The links' rotations ``T_R R`` (L, 3, 3) and origins ``T_R p + T_t`` (L, 3) in the
-    object frame, for link poses ``R`` (L, 3, 3), ``p`` (L, 3) in the gripper frame."""
-    n = len(R)
-    rotation, origin = np.empty((n, 3, 3)), np.empty((n, 3))
-    for link in range(n):
-        for i in range(3):
-            for j in range(3):
-                rotation[link, i, j] = (T[i, 0] * R[link, 0, j] + T[i, 1] * R[link, 1, j]
-                                        + T[i, 2] * R[link, 2, j])
-            origin[link, i] = (T[i, 0] * p[link, 0] + T[i, 1] * p[link, 1] + T[i, 2] * p[link, 2]
-                               + T[i, 3])
-    return rotation, origin
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -40,7 +26,8 @@ def to_object(T, R, p, owner, local):
     """Object-frame positions (M, 3) of points ``local`` (M, 3) given in the frames of links
     ``owner`` (M,), whose rotations ``R`` (L, 3, 3) and origins ``p`` (L, 3) are in the gripper
     frame, for the palm pose ``T`` (4, 4)."""
-    rotation, origin = _link_frames(T, R, p)
+    rotation, origin = np.empty((len(R), 3, 3)), np.empty((len(R), 3))
+    link_poses(T, R, p, rotation, origin)
     out = np.empty((len(owner), 3))
     for m in range(len(owner)):
         A, a = rotation[owner[m]], origin[owner[m]]
