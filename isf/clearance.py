@@ -355,10 +355,11 @@ class ClearanceRepair:
                     worst = float(rows.violation.max())
             depth = max(0.0, worst)
             before = depth if before is None else before
+            links = None if contacts == "none" else self._frame_jacobians(q, self._contact_frames)
             if contacts == "hold" and held is None:  # the held points: those touching at the start
-                held = self._contact_rows(T, q)[3]
+                held = self._contact_rows(T, q, links)[3]
             contact = _NO_CONTACT if contacts == "none" else \
-                self._contact_rows(T, q, held, pull=contacts == "pull")
+                self._contact_rows(T, q, links, held, pull=contacts == "pull")
             gaps = np.einsum("ij,ij->i", contact[0] - contact[1], contact[2])
             residual = float(np.abs(gaps).mean()) if len(gaps) else 0.0
             score = (max(depth - cfg.tolerance, 0.0), residual)
@@ -374,7 +375,7 @@ class ClearanceRepair:
             owner, local = rows.owner[active], rows.local[active]
             centre = contact[0].mean(axis=0) if len(contact[0]) else \
                 to_object(T, R, p, owner, local).mean(axis=0)
-            c_rows = self._contact_jacobian_rows(T, q, contact, centre)
+            c_rows = self._contact_jacobian_rows(T, contact, centre, links)
             a_rows = motion_rows(T, R, p, J, owner, local, centre, rows.normal[active])
             x = self._solve(c_rows, contact, a_rows, rows.violation[active], rows.element[active],
                             q)
@@ -436,12 +437,14 @@ class ClearanceRepair:
         return deepest_rows(violation, element, len(self.gripper.geometries), cfg.activation,
                             cfg.max_rows)
 
-    def _contact_rows(self, T: np.ndarray, q: np.ndarray, held: np.ndarray | None = None,
-                      pull: bool = False):
+    def _contact_rows(self, T: np.ndarray, q: np.ndarray, links: tuple,
+                      held: np.ndarray | None = None, pull: bool = False):
         """Contact points kept on (or drawn to) the object, with their nearest object planes.
 
         Args:
             T, q: the state.
+            links: the contact links' rotations, origins and Jacobians at ``q``
+                (``_frame_jacobians`` of ``_contact_frames``).
             held: indices of the contact points to hold; None selects them.
             pull: select every contact point that matches the object like a fit's pairs
                 (:func:`isf.repair_contacts.contact_pairs`: each surface a group, with
@@ -453,9 +456,8 @@ class ClearanceRepair:
         """
         cfg, g, obj = self.config, self.gripper, self.object
         if pull and held is None:  # each surface on its own: a pad that lost contact is drawn back
-            R, p, _ = self._frame_jacobians(q, self._contact_frames)
             source, points, target = contact_pairs(
-                T, R, p, self._contact, self._surfaces.starts,
+                T, links[0], links[1], self._contact, self._surfaces.starts,
                 (obj.points, obj.normals, obj.search.tree), self._contact_guess, _OUTLIER_FACTOR,
                 cfg.contact_reach, self._cos_limit)
             target = target[source]
@@ -470,13 +472,14 @@ class ClearanceRepair:
             held = np.flatnonzero((dist <= cfg.contact_reach) & facing)
         return points[held], obj.points[idx[held]], obj.normals[idx[held]], held
 
-    def _contact_jacobian_rows(self, T, q, contact, centre):
-        """Rows ``m^T A`` (K, 6 + n) of the kept contact points."""
+    def _contact_jacobian_rows(self, T, contact, centre, links):
+        """Rows ``m^T A`` (K, 6 + n) of the kept contact points (``links`` as for
+        :meth:`_contact_rows`)."""
         g = self.gripper
         _, _, plane_n, sel = contact
         if not len(sel):
             return np.empty((0, 6 + g.n_joints))
-        R, p, J = self._frame_jacobians(q, self._contact_frames)
+        R, p, J = links
         return motion_rows(T, R, p, J, g.point_link[sel], g.points_link[sel], centre, plane_n)
 
     def _qp(self, c_rows, contact, a_rows, violation, element, q):
