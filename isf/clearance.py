@@ -377,8 +377,7 @@ class ClearanceRepair:
                 to_object(T, R, p, owner, local).mean(axis=0)
             c_rows = self._contact_jacobian_rows(T, contact, centre, links)
             a_rows = motion_rows(T, R, p, J, owner, local, centre, rows.normal[active])
-            x = self._solve(c_rows, contact, a_rows, rows.violation[active], rows.element[active],
-                            q)
+            x = self._solve(c_rows, gaps, a_rows, rows.violation[active], rows.element[active], q)
             if x is None:
                 break
             previous = ((T, q), x, centre, worst)
@@ -482,30 +481,29 @@ class ClearanceRepair:
         R, p, J = links
         return motion_rows(T, R, p, J, g.point_link[sel], g.points_link[sel], centre, plane_n)
 
-    def _qp(self, c_rows, contact, a_rows, violation, element, q):
+    def _qp(self, c_rows, gaps, a_rows, violation, element, q):
         """The step's QP ``min 1/2 z^T H z + f^T z, lo <= A z <= hi`` over ``z = (x_mm, s)``
-        (:func:`isf.repair_step.step_qp`).
+        (:func:`isf.repair_step.step_qp`); ``gaps`` (K,): the contact points' signed distances
+        from their tangent planes, metres.
 
         Returns:
             (H, f, A, lo, hi, scale): ``x_mm = x * scale`` (millimetre units), ``s`` the slacks.
         """
-        points, plane_o, plane_n, _ = contact
-        residual = _MM * np.einsum("ij,ij->i", points - plane_o, plane_n)
         step, joints, g = self._step, self._scale[6:], self.gripper
         lo = np.minimum(0.0, np.maximum(-step[6:], (g.lower - q) * joints))
         hi = np.maximum(0.0, np.minimum(step[6:], (g.upper - q) * joints))
         H, f, A, lower, upper = step_qp(
-            c_rows, residual, a_rows, violation * _MM, element, self._unit, self._regularisation,
+            c_rows, gaps * _MM, a_rows, violation * _MM, element, self._unit, self._regularisation,
             self.config.contact_weight, self.config.slack_weight, step[:6], lo, hi)
         return H, f, A, lower, upper, self._scale
 
-    def _solve(self, c_rows, contact, a_rows, violation, element, q) -> np.ndarray | None:
+    def _solve(self, c_rows, gaps, a_rows, violation, element, q) -> np.ndarray | None:
         """One QP step ``x = (v, w, dq)`` in SI units, or None when no solver finds one.
 
         The QP is solved exactly by :func:`isf.dense_qp.solve_dense_qp`; OSQP is the fallback
         should that report anything but success.
         """
-        H, f, A, lower, upper, scale = self._qp(c_rows, contact, a_rows, violation, element, q)
+        H, f, A, lower, upper, scale = self._qp(c_rows, gaps, a_rows, violation, element, q)
         nx = len(scale)
         result = solve_dense_qp(H, f, A, lower, upper)
         if result.status == "solved":
