@@ -136,7 +136,7 @@ def _patch_centres(poses, act, deep, apart, clearance_bound, elements, patches, 
     element_patches, last_patch = elements[9], elements[10]
     samples, patch_start, patch_radius = patches[0], patches[3], patches[5]
     olo, ohi = surface[3], surface[4]
-    has_voxels, table, steps, vlo, vsize = voxels
+    has_voxels, table, voxel_gaps, vlo, vsize = voxels
     n_patch = 0
     for k in range(len(act)):
         n_patch += element_patches[act[k] + 1] - element_patches[act[k]]
@@ -162,7 +162,7 @@ def _patch_centres(poses, act, deep, apart, clearance_bound, elements, patches, 
                     reach = rho + VOXEL_MARGIN
                     outside[i] = box_clear(table, vlo, vsize, x - reach, y - reach, z - reach,
                                            x + reach, y + reach, z + reach)
-                gap[i] = max(gap[i], distance_below(steps, vlo, vsize, x, y, z))
+                gap[i] = max(gap[i], distance_below(voxel_gaps, vlo, vsize, x, y, z))
             need[i] = (deep[e] and not outside[i]) or p == last_patch[e]
             i += 1
     sd, plane = np.empty(n_patch), np.empty(n_patch, np.int64)
@@ -535,7 +535,7 @@ def check_elements(T, link_R, link_p, tolerance, obstacles, elements, patches, s
             inside elements) in a grid of cubic cells, edge ``cell``, corner ``lo``, ``shape``
             cells: those of cell ``(a, b, c)`` are ``points[cell_start[i]:cell_start[i + 1]]``
             with ``i = (a * shape[1] + b) * shape[2] + c``.
-        voxels: ``(present, table, steps, lo, size)`` of :class:`isf.collision_voxels.SurfaceVoxels`.
+        voxels: ``(present, table, gaps, lo, size)`` of :class:`isf.collision_voxels.SurfaceVoxels`.
         interiors: the non-convex closed elements' hull planes, grids and surfaces (with their
             trees) stacked, each with its start per element (``isf.collision._packed``).
 

@@ -8,10 +8,12 @@ spare on every side. A voxel that a triangle's bounding box overlaps is *blocked
   (closed) mesh, and so does all space beyond the grid. An axis-aligned box query asks
   whether every voxel it overlaps is outside (a summed-volume table of the blocked and
   enclosed voxels answers it in eight look-ups);
-* a voxel ``c`` steps (Chebyshev, in voxels) from the nearest blocked one is at least
-  ``(c - 1)`` voxel edges from the surface; a point ``p`` beyond the grid, with ``g`` its
-  nearest point on the grid, at least ``sqrt(|p - g|^2 + b(g)^2)`` where ``b(g)`` bounds
-  ``g``'s distance (the angle at ``g`` towards any point of the box is obtuse).
+* the surface lies in the blocked voxels, so a point is at least as far from it as its voxel's
+  box is from the nearest blocked voxel's box: ``sqrt(sum_i max(|d_i| - 1, 0)^2)`` voxel edges
+  for index offsets ``d``, the exact Euclidean distance transform of the blocked voxels grown
+  by one voxel on every side; a point ``p`` beyond the grid, with ``g`` its nearest point on
+  the grid, is at least ``sqrt(|p - g|^2 + b(g)^2)`` away, where ``b(g)`` bounds ``g``'s
+  distance (the angle at ``g`` towards any point of the box is obtuse).
 """
 
 from __future__ import annotations
@@ -85,33 +87,84 @@ def _not_outside(blocked):
     return ~reached
 
 
-@njit(cache=True, nogil=True)
-def _steps(blocked):
-    """Chebyshev distance of every voxel to the nearest blocked one, in voxels (int32); the
-    grid's size in voxels when none is blocked."""
+@njit(cache=True, nogil=True, error_model="numpy")
+def _transform_line(f, out, site, bound):
+    """``out[q] = min_p (q - p)^2 + f[p]`` over a line ``f`` (n,) of squared distances (``inf``
+    where none): the lower envelope of parabolas (Felzenszwalb and Huttenlocher, 2012).
+    ``site`` (n,) and ``bound`` (n + 1,): scratch."""
+    n = len(f)
+    k = -1
+    for q in range(n):
+        if f[q] == np.inf:
+            continue
+        while k >= 0:  # drop the parabolas the new one lies below from where they start
+            p = site[k]
+            s = ((f[q] + q * q) - (f[p] + p * p)) / (2.0 * (q - p))
+            if s > bound[k]:
+                break
+            k -= 1
+        k += 1
+        site[k] = q
+        if k == 0:
+            bound[0] = -np.inf
+        else:
+            p = site[k - 1]
+            bound[k] = ((f[q] + q * q) - (f[p] + p * p)) / (2.0 * (q - p))
+        bound[k + 1] = np.inf
+    if k < 0:
+        out[:] = np.inf
+        return
+    j = 0
+    for q in range(n):
+        while bound[j + 1] < q:
+            j += 1
+        out[q] = (q - site[j]) ** 2 + f[site[j]]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _gaps(blocked):
+    """Squared distance, in voxel edges squared, from every voxel's box to the nearest blocked
+    voxel's box, ``min_b sum_i max(|v_i - b_i| - 1, 0)^2`` (float64, exact integers); the grid's
+    squared diagonal when none is blocked.
+
+    Per axis, ``max(|d| - 1, 0)^2 = min_{e in {-1, 0, 1}} (d - e)^2``, so this is the squared
+    Euclidean distance transform of the blocked voxels grown by one voxel on every side (the
+    nearest grown voxel towards a voxel of the grid lies in the grid), taken axis by axis.
+    """
     nx, ny, nz = blocked.shape
-    steps = np.full(blocked.shape, nx + ny + nz, np.int32)
-    queue = np.empty((nx * ny * nz, 3), np.int64)
-    end = 0
+    grown = np.zeros(blocked.shape, np.bool_)
     for i in range(nx):
         for j in range(ny):
             for k in range(nz):
                 if blocked[i, j, k]:
-                    steps[i, j, k] = 0
-                    queue[end, 0], queue[end, 1], queue[end, 2] = i, j, k
-                    end += 1
-    head = 0
-    while head < end:  # breadth first over the 26 neighbours: Chebyshev steps
-        i, j, k = queue[head, 0], queue[head, 1], queue[head, 2]
-        head += 1
-        for a in range(max(i - 1, 0), min(i + 2, nx)):
-            for b in range(max(j - 1, 0), min(j + 2, ny)):
-                for c in range(max(k - 1, 0), min(k + 2, nz)):
-                    if steps[a, b, c] > steps[i, j, k] + 1:
-                        steps[a, b, c] = steps[i, j, k] + 1
-                        queue[end, 0], queue[end, 1], queue[end, 2] = a, b, c
-                        end += 1
-    return steps
+                    for a in range(max(i - 1, 0), min(i + 2, nx)):
+                        for b in range(max(j - 1, 0), min(j + 2, ny)):
+                            for c in range(max(k - 1, 0), min(k + 2, nz)):
+                                grown[a, b, c] = True
+    gaps = np.where(grown, 0.0, np.inf)
+    n = max(nx, ny, nz)
+    line, out = np.empty(n), np.empty(n)
+    site, bound = np.empty(n, np.int64), np.empty(n + 1)
+    for i in range(nx):  # along z, then y, then x
+        for j in range(ny):
+            _transform_line(gaps[i, j, :], out[:nz], site, bound)
+            gaps[i, j, :] = out[:nz]
+    for i in range(nx):
+        for k in range(nz):
+            line[:ny] = gaps[i, :, k]
+            _transform_line(line[:ny], out[:ny], site, bound)
+            gaps[i, :, k] = out[:ny]
+    for j in range(ny):
+        for k in range(nz):
+            line[:nx] = gaps[:, j, k]
+            _transform_line(line[:nx], out[:nx], site, bound)
+            gaps[:, j, k] = out[:nx]
+    diagonal = float(nx * nx + ny * ny + nz * nz)
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                gaps[i, j, k] = min(gaps[i, j, k], diagonal)
+    return gaps
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -122,22 +175,21 @@ def _cell(p, lo, size, n):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def distance_below(steps, lo, size, x, y, z):
-    """A lower bound of the distance of point ``(x, y, z)`` to the blocked voxels (Chebyshev
-    ``steps``, grid corner ``lo``, voxel edge ``size``), metres."""
-    a, da = _cell(x, lo[0], size, steps.shape[0])
-    b, db = _cell(y, lo[1], size, steps.shape[1])
-    c, dc = _cell(z, lo[2], size, steps.shape[2])
-    inner = max(steps[a, b, c] - 1, 0) * size
-    return np.sqrt(da + db + dc + inner * inner)
+def distance_below(gaps, lo, size, x, y, z):
+    """A lower bound of the distance of point ``(x, y, z)`` to the blocked voxels (``gaps`` of
+    :func:`_gaps`, grid corner ``lo``, voxel edge ``size``), metres."""
+    a, da = _cell(x, lo[0], size, gaps.shape[0])
+    b, db = _cell(y, lo[1], size, gaps.shape[1])
+    c, dc = _cell(z, lo[2], size, gaps.shape[2])
+    return np.sqrt(da + db + dc + gaps[a, b, c] * (size * size))
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _distance_below(steps, lo, size, points):
+def _distance_below(gaps, lo, size, points):
     """:func:`distance_below` of points (M, 3), metres (M,)."""
     out = np.empty(len(points))
     for q in range(len(points)):
-        out[q] = distance_below(steps, lo, size, points[q, 0], points[q, 1], points[q, 2])
+        out[q] = distance_below(gaps, lo, size, points[q, 0], points[q, 1], points[q, 2])
     return out
 
 
@@ -189,8 +241,9 @@ class SurfaceVoxels:
         shape = np.floor((hi - self.lo) / self.size).astype(np.int64) + 3
         blocked = _blocked(vertices, faces, self.lo, self.size, shape)
         counted = _not_outside(blocked)
-        self.steps = _steps(blocked)
-        """Chebyshev distance of every voxel to the nearest blocked one, in voxels (int32)."""
+        self.gaps = _gaps(blocked)
+        """Squared distance from every voxel's box to the nearest blocked voxel's box, in voxel
+        edges squared (float64, exact integers)."""
         self.table = np.zeros(shape + 1, dtype=np.int64)
         """Summed-volume table of the voxels not outside, (shape + 1) (int64)."""
         self.table[1:, 1:, 1:] = counted.cumsum(0).cumsum(1).cumsum(2)
@@ -204,14 +257,14 @@ class SurfaceVoxels:
 
     def distance_below(self, points: np.ndarray) -> np.ndarray:
         """A lower bound of each point's (M, 3) distance to the mesh, metres (M,)."""
-        return _distance_below(self.steps, self.lo, self.size,
+        return _distance_below(self.gaps, self.lo, self.size,
                                np.ascontiguousarray(points, dtype=np.float64))
 
 
 def kernel_arrays(voxels: SurfaceVoxels | None) -> tuple:
-    """``(present, table, steps, lo, size)`` of ``voxels`` for compiled callers (the arrays of
+    """``(present, table, gaps, lo, size)`` of ``voxels`` for compiled callers (the arrays of
     :class:`SurfaceVoxels`); for None, ``present`` is False and the arrays are placeholders of
     the same types (so the kernels compile once)."""
     if voxels is None:
-        return False, np.zeros((1, 1, 1), np.int64), np.zeros((1, 1, 1), np.int32), np.zeros(3), 1.0
-    return True, voxels.table, voxels.steps, voxels.lo, voxels.size
+        return False, np.zeros((1, 1, 1), np.int64), np.zeros((1, 1, 1)), np.zeros(3), 1.0
+    return True, voxels.table, voxels.gaps, voxels.lo, voxels.size

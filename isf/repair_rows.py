@@ -120,10 +120,10 @@ def sample_rows(world, floor, element, known_violation, known_element, n_element
     m = len(world)
     outside = np.zeros(m, np.bool_)
     look = np.ones(m, np.bool_)
-    present, table, steps, lo, size = voxels
+    present, table, gaps, lo, size = voxels
     if present:  # outside by the voxels and beyond reach by their distance bound: no row
         outside = _clear(table, lo, size, world, world)
-        below = _distance_below(steps, lo, size, world)
+        below = _distance_below(gaps, lo, size, world)
         for i in range(m):
             look[i] = not outside[i] or below[i] < reach
     dist, nearest = np.full(m, np.inf), np.full(m, -1, np.int64)

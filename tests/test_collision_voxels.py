@@ -9,7 +9,7 @@ import trimesh
 
 from isf.collision import CollisionChecker
 from isf.collision_elements import Element
-from isf.collision_voxels import SurfaceVoxels
+from isf.collision_voxels import SurfaceVoxels, _gaps
 from isf.gripper import LinkGeometry
 from test_collision import jaw_gripper, mesh_object, pose
 
@@ -65,9 +65,25 @@ def test_distance_below_never_exceeds_the_mesh_distance():
     below = voxels.distance_below(points)
     exact = _mesh_distances(mesh, points)
     assert (below <= exact + 1e-12).all()
-    # and not vacuous: Chebyshev steps are at least the Euclidean distance over sqrt(3), less a
+    # and not vacuous: at least the Euclidean distance over sqrt(3) (a Chebyshev bound), less a
     # voxel on each side and the triangles' overreach (small on this fine mesh)
     assert (below >= exact / np.sqrt(3) - 3 * voxels.size).all()
+
+
+@pytest.mark.parametrize("fill", [0.0, 0.01, 0.05, 0.3])
+def test_voxel_gaps_are_the_box_to_box_distances_to_the_blocked_voxels(fill):
+    rng = np.random.default_rng(int(fill * 100))
+    for _ in range(8):
+        shape = tuple(int(n) for n in rng.integers(1, 13, 3))
+        blocked = rng.random(shape) < fill
+        cells = np.argwhere(np.ones(shape, bool))
+        sites = np.argwhere(blocked)
+        if len(sites):  # brute force: every voxel against every blocked one
+            apart = np.maximum(np.abs(cells[:, None, :] - sites[None, :, :]) - 1, 0)
+            expected = (apart ** 2).sum(axis=-1).min(axis=1).reshape(shape)
+        else:  # none blocked: the grid's squared diagonal
+            expected = np.full(shape, sum(n * n for n in shape))
+        assert np.array_equal(_gaps(blocked), expected.astype(float))
 
 
 def test_object_depth_matches_the_distance_to_a_convex_element_surface():
