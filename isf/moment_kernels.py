@@ -126,16 +126,36 @@ def _residual(M, v, P, out):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _add_sandwich(X, M, rows, cols, weight, out, XM):
-    """``out += weight * X[:, :cols] M[:cols, :cols] X[:, :cols]^T`` for ``X`` (rows, >= cols)."""
+def _add_sandwich(X, M, rows, cols, weight, out, XM, used):
+    """``out += weight * X[:, :cols] M[:cols, :cols] X[:, :cols]^T`` for ``X`` (rows, >= cols).
+
+    With ``used`` (rows,) scratch, rows of ``X`` that are zero in its first ``cols`` columns
+    are left out of the sums (a finger's joints do not move the other fingers' links): their
+    terms would add +0 to sums that start at +0, so the result is that of the full sums bit
+    for bit; ``used`` is left marking the rows that entered. With ``used=None`` every row
+    enters (the palm's rows are never zero). ``XM`` (rows, cols): scratch.
+    """
+    if used is not None:
+        for i in range(rows):
+            used[i] = False
+            for k in range(cols):
+                if X[i, k] != 0.0:
+                    used[i] = True
+                    break
     for i in range(rows):
+        if used is not None and not used[i]:
+            continue
         for j in range(cols):
             acc = 0.0
             for k in range(cols):
                 acc += X[i, k] * M[k, j]
             XM[i, j] = acc
     for i in range(rows):
+        if used is not None and not used[i]:
+            continue
         for j in range(rows):
+            if used is not None and not used[j]:
+                continue
             acc = 0.0
             for k in range(cols):
                 acc += XM[i, k] * X[j, k]
@@ -225,14 +245,14 @@ def _palm_system(b, T, rotations, positions, origin, fit_count, M, N, v, w, s, c
             G[0, 3 * j + 1], G[0, 3 * j + 2] = -col[2], col[1]
             G[1, 3 * j], G[1, 3 * j + 2] = col[2], -col[0]
             G[2, 3 * j], G[2, 3 * j + 1] = -col[1], col[0]
-        _add_sandwich(G, M[g], 6, 12, 1.0, H, GM)
+        _add_sandwich(G, M[g], 6, 12, 1.0, H, GM, None)
         for i in range(6):
             acc = 0.0
             for j in range(12):
                 acc += G[i, j] * r[j]
             grad[i] += acc
         if alpha2 > 0.0:
-            _add_sandwich(G, N[g], 3, 9, alpha2, H, GM)
+            _add_sandwich(G, N[g], 3, 9, alpha2, H, GM, None)
             _normal_residual(N[g], P, w[g], rn)
             for i in range(3):
                 acc = 0.0
@@ -367,6 +387,7 @@ def finger_systems(T, rotations, positions, J_linear, J_angular, origin, M, N, v
     AtA, Atb = np.zeros((n_fits, n, n)), np.zeros((n_fits, n))
     A, a, P, r, rn = np.empty((3, 3)), np.empty(3), np.empty(12), np.empty(12), np.empty(9)
     F, FM = np.zeros((n, 12)), np.empty((n, 12))
+    used = np.empty(n, np.bool_)
     Jv, Jw = np.empty((3, n)), np.empty((3, n))
     for b in range(n_fits):
         for l in range(n_links):
@@ -388,16 +409,20 @@ def finger_systems(T, rotations, positions, J_linear, J_angular, origin, M, N, v
                     F[m, 3 * j + 1] = Jw[2, m] * A[0, j] - Jw[0, m] * A[2, j]
                     F[m, 3 * j + 2] = Jw[0, m] * A[1, j] - Jw[1, m] * A[0, j]
                     F[m, 9 + j] = Jv[j, m]
-            _add_sandwich(F, M[g], n, 12, 1.0, AtA[b], FM)
+            _add_sandwich(F, M[g], n, 12, 1.0, AtA[b], FM, used)
             for m in range(n):
+                if not used[m]:  # a joint that does not move the link: a zero row adds +0
+                    continue
                 acc = 0.0
                 for j in range(12):
                     acc += F[m, j] * r[j]
                 Atb[b, m] += acc
             if alpha > 0.0:
-                _add_sandwich(F, N[g], n, 9, alpha * alpha, AtA[b], FM)
+                _add_sandwich(F, N[g], n, 9, alpha * alpha, AtA[b], FM, used)
                 _normal_residual(N[g], P, w[g], rn)
                 for m in range(n):
+                    if not used[m]:
+                        continue
                     acc = 0.0
                     for j in range(9):
                         acc += F[m, j] * rn[j]
