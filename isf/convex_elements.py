@@ -5,7 +5,8 @@ edge can poke into a link between its samples. For a closed convex element the t
 exact: a point lies inside when it is below every face plane ``n . x <= d``. The repair
 pushes such points (and those within a reach of the element) out through the element's
 nearest face. :meth:`ConvexElements.rows` finds them for all elements at once, in compiled
-code: the object points within each element's bounding sphere (found through a
+code: the object points within each element's bounding sphere and within the box (in its link
+frame) of the points less than the reach above every face plane (found through a
 :class:`isf.point_grid.PointGrid`), then its faces in spread-out order, up to the first that
 leaves the point out.
 """
@@ -19,7 +20,7 @@ import trimesh
 from numba import njit
 from scipy.spatial import HalfspaceIntersection, QhullError
 
-from .point_grid import PointGrid, ball_candidates
+from .point_grid import PointGrid, ball_box_candidates
 
 __all__ = ["ConvexElements", "ConvexRows"]
 
@@ -137,6 +138,7 @@ class ConvexElements:
         self._radius = np.array([f[2] for _, f in found])
         # of the polytope of the kept planes (larger than the element when planes were dropped)
         self._extent = np.array([f[3] for _, f in found])
+        self._boxes: dict[float, np.ndarray] = {}  # reach -> _reach_box of every element
 
     def __len__(self) -> int:
         return len(self.element)
@@ -145,29 +147,63 @@ class ConvexElements:
              keep: int) -> ConvexRows:
         """The object points of ``grid`` inside, or within ``reach`` (m) beyond the floor of, each
         element, with the gripper at palm pose ``T`` (4, 4) and link poses ``R`` (L, 3, 3), ``p``
-        (L, 3) (gripper frame); of an element's points, only those that may be among its
-        ``keep`` deepest (a point left out has ``keep`` rows of its element with larger
-        violations ``floor - depth``). Rows come element by element, points in index order."""
+        (L, 3) (gripper frame); of an element's points, its ``keep`` deepest (largest
+        violations ``floor - depth``) and those tied with the last of them. Rows come element
+        by element, points in index order."""
         R_links = T[:3, :3] @ R[self.owner]  # element (link) rotations in the object frame
         origins = p[self.owner] @ T[:3, :3].T + T[:3, 3]
+        boxes = self._reach_boxes(float(reach))
         return ConvexRows(*_rows(grid.points, *grid.arrays, R_links, origins, self._centre,
-                                 self._radius, self._extent, self.floor, self._planes,
+                                 self._radius, self._extent, boxes, self.floor, self._planes,
                                  self._plane_start, float(reach), int(keep)))
+
+    def _reach_boxes(self, reach: float) -> np.ndarray:
+        """:func:`_reach_box` of every element for ``reach`` (C, 2, 3), computed once per reach
+        (threads that race here compute the same boxes)."""
+        boxes = self._boxes.get(reach)
+        if boxes is None:
+            boxes = np.empty((len(self), 2, 3))
+            for c in range(len(self)):
+                planes = self._planes[self._plane_start[c]:self._plane_start[c + 1]]
+                boxes[c] = _reach_box(planes, self._centre[c], max(self.floor[c] + reach, 0.0))
+            self._boxes[reach] = boxes
+        return boxes
+
+
+def _reach_box(planes: np.ndarray, centre: np.ndarray, margin: float) -> np.ndarray:
+    """Corners ``[lo, hi]`` (2, 3), link frame, of a box holding every point less than ``margin``
+    (m, >= 0) above all the face planes ``n . x <= d`` (P, 4) of a polytope with the inner point
+    ``centre`` (3,): the box of the corners of the planes moved out by ``margin``, padded for
+    rounding; the whole space when qhull cannot tell (an unbounded polytope)."""
+    unique = np.unique(np.round(planes, 12), axis=0)  # a box's two triangles per side: one plane
+    try:
+        corners = HalfspaceIntersection(np.c_[unique[:, :3], -(unique[:, 3] + margin)],
+                                        centre).intersections
+    except QhullError:
+        corners = np.array([[np.inf] * 3])
+    if not np.all(np.isfinite(corners)):
+        return np.array([[-np.inf] * 3, [np.inf] * 3])
+    pad = 1e-9 * (1.0 + np.abs(corners).max())
+    return np.array([corners.min(axis=0) - pad, corners.max(axis=0) + pad])
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _rows(points, order, start, lo, cell, shape, R_links, origins, centres, radii, extents, floors,
-          planes, plane_start, reach, keep):
+def _rows(points, order, start, lo, cell, shape, R_links, origins, centres, radii, extents, boxes,
+          floors, planes, plane_start, reach, keep):
     """:meth:`ConvexElements.rows`, compiled: (element (K,), foot (K, 3), normal (K, 3), depth
-    (K,), point (K,)). An element's points are tried nearest to its centre first (likely the
-    deepest), so that the points shallower than ``keep`` rows found are soon skipped."""
+    (K,), point (K,)). An element's candidates are the points in its ball that lie in its
+    reach box (``boxes`` (C, 2, 3), :func:`_reach_box`; a point outside it is at least the
+    reach above some face plane). They are tried nearest to its centre first (likely the
+    deepest), so that the points shallower than ``keep`` rows found are soon skipped; rows
+    found before ``keep`` deeper ones are dropped at the end, so the rows do not depend on
+    the order."""
     capacity = 256
     element, foot = np.empty(capacity, np.int64), np.empty((capacity, 3))
     normal, depth = np.empty((capacity, 3)), np.empty(capacity)
     count = 0
-    local = np.empty(3)
     near = np.empty(len(points), np.int64)
     rho = np.empty(len(points))  # distance of each point in the ball from the element's centre
+    local = np.empty((len(points), 3))  # and its position in the element's link frame
     point = np.empty(capacity, np.int64)  # the object point of each row
     deepest = np.empty(keep)  # violations (floor - depth) of an element's deepest rows, descending
     central = np.empty(keep, np.int64)  # the points in the ball nearest to the centre
@@ -180,15 +216,25 @@ def _rows(points, order, start, lo, cell, shape, R_links, origins, centres, radi
             centre[i] = (R[i, 0] * centres[c, 0] + R[i, 1] * centres[c, 1]
                          + R[i, 2] * centres[c, 2] + o[i])
         ball2 = (radii[c] + reach) ** 2
+        box_lo, box_hi = boxes[c, 0], boxes[c, 1]
         hint = plane_start[c]
         n_ball = 0
         n_central = 0
-        for k in near[:ball_candidates(centre, radii[c] + reach, order, start, lo, cell, shape,
-                                       near)]:
+        n_near = ball_box_candidates(centre, radii[c] + reach, R, o, box_lo, box_hi, order, start,
+                                     lo, cell, shape, near)
+        for k in near[:n_near]:
             d2 = 0.0
             for i in range(3):
                 d2 += (points[k, i] - centre[i]) ** 2
             if d2 > ball2:
+                continue
+            outside = False
+            for j in range(3):  # the point in the element's link frame
+                x = ((points[k, 0] - o[0]) * R[0, j] + (points[k, 1] - o[1]) * R[1, j]
+                     + (points[k, 2] - o[2]) * R[2, j])
+                local[n_ball, j] = x
+                outside = outside or x < box_lo[j] or x > box_hi[j]
+            if outside:
                 continue
             near[n_ball], rho[n_ball] = k, np.sqrt(d2)  # compact: n_ball never passes the scan
             slot = min(n_central, keep - 1)
@@ -211,15 +257,13 @@ def _rows(points, order, start, lo, cell, shape, R_links, origins, centres, radi
             if shallow:
                 continue
             k = near[m]
-            for j in range(3):  # the point in the element's link frame
-                local[j] = ((points[k, 0] - o[0]) * R[0, j] + (points[k, 1] - o[1]) * R[1, j]
-                            + (points[k, 2] - o[2]) * R[2, j])
+            x = local[m]
             # the face that left the last point out often leaves this one out too
-            sd = (planes[hint, 0] * local[0] + planes[hint, 1] * local[1]
-                  + planes[hint, 2] * local[2] - planes[hint, 3])
+            sd = (planes[hint, 0] * x[0] + planes[hint, 1] * x[1]
+                  + planes[hint, 2] * x[2] - planes[hint, 3])
             if sd >= floors[c] + reach or floors[c] - sd < deepest[keep - 1]:
                 continue
-            best, face = _deepest_face(local, planes, plane_start[c], plane_start[c + 1],
+            best, face = _deepest_face(x, planes, plane_start[c], plane_start[c + 1],
                                        floors[c] + reach, floors[c], deepest[keep - 1])
             if face < 0:
                 hint = -1 - face
@@ -237,10 +281,17 @@ def _rows(points, order, start, lo, cell, shape, R_links, origins, centres, radi
                 point = _grow(point, capacity)
             element[count], depth[count], point[count] = c, best, k
             for i in range(3):
-                foot[count, i] = local[i] - best * planes[face, i]
+                foot[count, i] = x[i] - best * planes[face, i]
                 normal[count, i] = -(R[i, 0] * planes[face, 0] + R[i, 1] * planes[face, 1]
                                      + R[i, 2] * planes[face, 2])
             count += 1
+        kept = first_row  # drop the rows found before `keep` deeper ones
+        for r in range(first_row, count):
+            if floors[c] - depth[r] >= deepest[keep - 1]:
+                element[kept], depth[kept], point[kept] = element[r], depth[r], point[r]
+                foot[kept], normal[kept] = foot[r], normal[r]
+                kept += 1
+        count = kept
         # put the element's rows in point order
         by_point = np.argsort(point[first_row:count]) + first_row
         foot[first_row:count], normal[first_row:count] = foot[by_point], normal[by_point]

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import trimesh
 
-from isf.point_grid import MAX_CELLS, PointGrid, ball_candidates
+from isf.point_grid import MAX_CELLS, PointGrid, ball_box_candidates, ball_candidates
 
 
 def _candidates(grid: PointGrid, centre, radius) -> np.ndarray:
@@ -45,3 +46,32 @@ def test_a_widely_spread_set_keeps_the_grid_small():
     grid = PointGrid(points, cell=0.001)
     assert np.prod(grid.arrays[4]) <= 2 * MAX_CELLS
     assert set(_candidates(grid, points[2], 1e-3)) >= {2}
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_ball_box_candidates_hold_every_point_in_the_ball_and_the_box_once(seed):
+    rng = np.random.default_rng(seed)
+    points = rng.normal(scale=0.03, size=(3000, 3))
+    grid = PointGrid(points, cell=rng.uniform(0.002, 0.01))
+    out = np.empty(len(points), dtype=np.int64)
+    fewer = 0
+    for _ in range(50):
+        centre = rng.normal(scale=0.03, size=3)
+        radius = rng.uniform(0.0, 0.05)
+        R = trimesh.transformations.random_rotation_matrix(rng.random(3))[:3, :3]
+        origin = rng.normal(scale=0.02, size=3)
+        half = rng.uniform(0.001, 0.02, 3)  # a flat or thin box in the pose's frame
+        box_lo, box_hi = -half + rng.normal(scale=0.005, size=3), half
+        found = out[:ball_box_candidates(centre, radius, R, origin, box_lo, box_hi, *grid.arrays,
+                                         out)].copy()
+        assert len(np.unique(found)) == len(found)
+        local = (points - origin) @ R
+        inside = np.flatnonzero((np.linalg.norm(points - centre, axis=1) <= radius)
+                                & (local >= box_lo).all(axis=1) & (local <= box_hi).all(axis=1))
+        assert set(inside) <= set(found)
+        fewer += len(found) < len(_candidates(grid, centre, radius))
+    assert fewer > 10  # the box leaves cells out
+    # an infinite box: the ball's candidates
+    found = out[:ball_box_candidates(centre, radius, R, origin, np.full(3, -np.inf),
+                                     np.full(3, np.inf), *grid.arrays, out)]
+    assert sorted(found) == sorted(_candidates(grid, centre, radius))

@@ -15,7 +15,7 @@ import trimesh
 import isf
 from isf.clearance import ClearanceRepair
 from isf.collision_surface import NEIGHBOURS
-from isf.convex_elements import ConvexElements
+from isf.convex_elements import ConvexElements, _reach_box
 from isf.point_grid import PointGrid
 from isf.repair_rows import deepest_rows, undecided
 from isf.repair_step import to_object
@@ -116,11 +116,37 @@ def test_convex_rows_keep_the_deepest_of_every_element(seed):
     # element by element, points in index order
     order = np.lexsort((out.point, out.element))
     np.testing.assert_array_equal(order, np.arange(len(order)))
-    # the `keep` most violated rows of every element are there
+    # of every element, exactly the `keep` most violated rows of its ball and those tied with
+    # the last of them
     for c in range(3):
-        mine = sorted(((-v, k) for cc, k, v, _ in expected if cc == c))[:keep]
-        assert {k for _, k in mine} <= set(out.point[out.element == c])
+        centre = R[c] @ elements._centre[c] + p[c]
+        in_ball = {k for cc, k, _, _ in expected if cc == c
+                   and np.linalg.norm(points[k] - centre) <= elements._radius[c] + reach}
+        violations = sorted((v for cc, k, v, _ in expected if cc == c and k in in_ball), reverse=True)
+        cut = violations[keep - 1] if len(violations) >= keep else -np.inf
+        wanted = {k for cc, k, v, _ in expected if cc == c and k in in_ball and v >= cut}
+        assert set(out.point[out.element == c]) == wanted
+        assert len(wanted) >= min(keep, len(in_ball))
     assert sum(len(out.point[out.element == c]) for c in range(3)) >= 1
+
+
+@pytest.mark.parametrize("margin", [0.0, 0.003])
+def test_reach_box_holds_every_point_less_than_the_margin_above_all_faces(margin):
+    rng = np.random.default_rng(7)
+    elements = ConvexElements(convex_meshes(), np.arange(3), np.zeros(3))
+    for c in range(3):
+        planes = elements._planes[elements._plane_start[c]:elements._plane_start[c + 1]]
+        box = _reach_box(planes, elements._centre[c], margin)
+        spread = elements._radius[c] + margin + 0.005
+        points = elements._centre[c] + rng.uniform(-spread, spread, (20000, 3))
+        near = (points @ planes[:, :3].T - planes[:, 3]).max(axis=1) < margin
+        assert near.sum() > 100
+        assert ((points[near] >= box[0]) & (points[near] <= box[1])).all()
+    # the box mesh: its own extents grown by the margin (each side's two triangles, one plane)
+    planes = elements._planes[:elements._plane_start[1]]
+    box = _reach_box(planes, elements._centre[0], margin)
+    np.testing.assert_allclose(box[1], np.array([0.01, 0.006, 0.004]) + margin, atol=1e-9)
+    np.testing.assert_allclose(box[0], -box[1], atol=1e-9)
 
 
 # ------------------------------------------------------------- rows at whole repair states
