@@ -129,21 +129,19 @@ def _residual(M, v, P, out):
 def _add_sandwich(X, M, rows, cols, weight, out, XM, used):
     """``out += weight * X[:, :cols] M[:cols, :cols] X[:, :cols]^T`` for ``X`` (rows, >= cols).
 
-    With ``used`` (rows,) scratch, rows of ``X`` that are zero in its first ``cols`` columns
-    are left out of the sums (a finger's joints do not move the other fingers' links): their
-    terms would add +0 to sums that start at +0, so the result is that of the full sums bit
-    for bit; ``used`` is left marking the rows that entered. With ``used=None`` every row
-    enters (the palm's rows are never zero). ``XM`` (rows, cols): scratch.
+    Rows of ``X`` that are zero in its first ``cols`` columns are left out of the sums (a
+    finger's joints do not move the other fingers' links): their terms would add +0 to sums
+    that start at +0, so the result is that of the full sums bit for bit. ``XM`` (rows, cols)
+    and ``used`` (rows,): scratch; ``used`` is left marking the rows that entered.
     """
-    if used is not None:
-        for i in range(rows):
-            used[i] = False
-            for k in range(cols):
-                if X[i, k] != 0.0:
-                    used[i] = True
-                    break
     for i in range(rows):
-        if used is not None and not used[i]:
+        used[i] = False
+        for k in range(cols):
+            if X[i, k] != 0.0:
+                used[i] = True
+                break
+    for i in range(rows):
+        if not used[i]:
             continue
         for j in range(cols):
             acc = 0.0
@@ -151,15 +149,59 @@ def _add_sandwich(X, M, rows, cols, weight, out, XM, used):
                 acc += X[i, k] * M[k, j]
             XM[i, j] = acc
     for i in range(rows):
-        if used is not None and not used[i]:
+        if not used[i]:
             continue
         for j in range(rows):
-            if used is not None and not used[j]:
+            if not used[j]:
                 continue
             acc = 0.0
             for k in range(cols):
                 acc += XM[i, k] * X[j, k]
             out[i, j] += weight * acc
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _lever_dot(G, i, M, j, cols):
+    """``sum_k G[i, k] M[k, j]`` over the columns ``k < cols`` (9 or 12) where row ``i`` (0-2)
+    of the palm's lever matrix may be non-zero, in ascending order from +0: row ``i`` holds
+    ``[c]_x`` of four columns ``c``, whose diagonal is zero."""
+    if i == 0:
+        s = 0.0 + G[0, 1] * M[1, j] + G[0, 2] * M[2, j] + G[0, 4] * M[4, j] + G[0, 5] * M[5, j] \
+            + G[0, 7] * M[7, j] + G[0, 8] * M[8, j]
+        if cols > 9:
+            s = s + G[0, 10] * M[10, j] + G[0, 11] * M[11, j]
+    elif i == 1:
+        s = 0.0 + G[1, 0] * M[0, j] + G[1, 2] * M[2, j] + G[1, 3] * M[3, j] + G[1, 5] * M[5, j] \
+            + G[1, 6] * M[6, j] + G[1, 8] * M[8, j]
+        if cols > 9:
+            s = s + G[1, 9] * M[9, j] + G[1, 11] * M[11, j]
+    else:
+        s = 0.0 + G[2, 0] * M[0, j] + G[2, 1] * M[1, j] + G[2, 3] * M[3, j] + G[2, 4] * M[4, j] \
+            + G[2, 6] * M[6, j] + G[2, 7] * M[7, j]
+        if cols > 9:
+            s = s + G[2, 9] * M[9, j] + G[2, 10] * M[10, j]
+    return s
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _add_palm_sandwich(G, M, cols, weight, out, GM):
+    """``out += weight * G[:r, :cols] M G[:r, :cols]^T`` for the palm's lever matrix ``G`` (6, 12)
+    (rows 0-2: cross-product blocks, rows 3-5: ``[0 | I]``), ``r = 6`` for ``cols = 12`` and
+    ``r = 3`` for ``cols = 9``: :func:`_add_sandwich` without the terms that are zero by the
+    structure of ``G`` (a zero term leaves a sum from +0 unchanged: the same result bit for
+    bit). ``GM`` (6, 12): scratch."""
+    rows = 6 if cols == 12 else 3
+    for j in range(cols):
+        for i in range(3):
+            GM[i, j] = _lever_dot(G, i, M, j, cols)
+        for i in range(3, rows):
+            GM[i, j] = 0.0 + M[6 + i, j]
+    GMt = GM.T
+    for a in range(rows):
+        for b in range(3):
+            out[a, b] += weight * _lever_dot(G, b, GMt, a, cols)
+        for b in range(3, rows):
+            out[a, b] += weight * (0.0 + GM[a, 6 + b])
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -245,14 +287,14 @@ def _palm_system(b, T, rotations, positions, origin, fit_count, M, N, v, w, s, c
             G[0, 3 * j + 1], G[0, 3 * j + 2] = -col[2], col[1]
             G[1, 3 * j], G[1, 3 * j + 2] = col[2], -col[0]
             G[2, 3 * j], G[2, 3 * j + 1] = -col[1], col[0]
-        _add_sandwich(G, M[g], 6, 12, 1.0, H, GM, None)
+        _add_palm_sandwich(G, M[g], 12, 1.0, H, GM)
         for i in range(6):
             acc = 0.0
             for j in range(12):
                 acc += G[i, j] * r[j]
             grad[i] += acc
         if alpha2 > 0.0:
-            _add_sandwich(G, N[g], 3, 9, alpha2, H, GM, None)
+            _add_palm_sandwich(G, N[g], 9, alpha2, H, GM)
             _normal_residual(N[g], P, w[g], rn)
             for i in range(3):
                 acc = 0.0

@@ -76,3 +76,53 @@ def test_small_solve_matches_lapack(n):
     x = np.empty(n)
     solve_small(H, rhs, x)
     np.testing.assert_allclose(x, np.linalg.solve(H, rhs), rtol=1e-10, atol=1e-12)
+
+
+def _dense_sandwich(X, M, rows, cols, weight, out):
+    """``out += weight * X M X^T`` summed term by term in column order, every term included
+    (the plain triple loop the compiled sandwiches must equal bit for bit)."""
+    XM = np.zeros((rows, cols))
+    for i in range(rows):
+        for j in range(cols):
+            acc = 0.0
+            for k in range(cols):
+                acc += float(X[i, k]) * float(M[k, j])
+            XM[i, j] = acc
+    for i in range(rows):
+        for j in range(rows):
+            acc = 0.0
+            for k in range(cols):
+                acc += XM[i, k] * float(X[j, k])
+            out[i, j] += weight * acc
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_structured_sandwiches_equal_the_full_sums_bit_for_bit(seed):
+    from isf.moment_kernels import _add_palm_sandwich, _add_sandwich
+    rng = np.random.default_rng(seed)
+    Y = rng.normal(size=(30, 12))
+    M = Y.T @ Y  # symmetric, like the pair moments
+    # the palm's lever matrix: cross-product blocks of four columns, then [0 | I]
+    G = np.zeros((6, 12))
+    for j in range(4):
+        c = rng.normal(size=3)
+        G[0, 3 * j + 1], G[0, 3 * j + 2] = -c[2], c[1]
+        G[1, 3 * j], G[1, 3 * j + 2] = c[2], -c[0]
+        G[2, 3 * j], G[2, 3 * j + 1] = -c[1], c[0]
+    G[3:, 9:] = np.eye(3)
+    for cols, rows, weight in ((12, 6, 1.0), (9, 3, 0.37)):
+        start = rng.normal(size=(6, 6))
+        expected, got = start.copy(), start.copy()
+        _dense_sandwich(G, M, rows, cols, weight, expected)
+        _add_palm_sandwich(G, M, cols, weight, got, np.empty((6, 12)))
+        np.testing.assert_array_equal(got, expected)
+    # a finger's rows: the joints that do not move the link are zero rows
+    F = rng.normal(size=(7, 12))
+    F[[1, 4, 5]] = 0.0
+    F[2, 9:] = 0.0  # zero in the first 9 columns only when they are all that count
+    for cols, weight in ((12, 1.0), (9, 0.37)):
+        start = rng.normal(size=(7, 7))
+        expected, got = start.copy(), start.copy()
+        _dense_sandwich(F, M, 7, cols, weight, expected)
+        _add_sandwich(F, M, 7, cols, weight, got, np.empty((7, 12)), np.empty(7, np.bool_))
+        np.testing.assert_array_equal(got, expected)
