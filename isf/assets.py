@@ -46,7 +46,7 @@ import zipfile
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
-from isf.exceptions import ConfigError, ISFError
+from .exceptions import ConfigError, ISFError
 
 __all__ = [
     "AssetFetchError",

@@ -30,7 +30,7 @@ import numba
 import numpy as np
 import pinocchio as pin
 
-from isf.exceptions import InvalidInputError
+from .exceptions import InvalidInputError
 
 __all__ = ["KinematicChain"]
 

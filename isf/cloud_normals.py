@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from isf.spanning_tree import tree_signs
-from isf.voxel_grid import group_mean
+from .spanning_tree import tree_signs
+from .voxel_grid import group_mean
 
 __all__ = ["estimate_normals", "facing_away", "orient_normals_mst", "voxel_downsample"]
 

@@ -25,7 +25,7 @@ from typing import NamedTuple
 import numpy as np
 import pinocchio as pin
 
-from isf.chain import KinematicChain
+from .chain import KinematicChain
 
 __all__ = ["ContactKinematics", "ContactSurface", "Gripper", "LinkGeometry", "LinkKinematics"]
 

@@ -17,9 +17,9 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from isf.exceptions import ObjectLoadError
-from isf.spanning_tree import tree_signs
-from isf.voxel_grid import group_mean
+from .exceptions import ObjectLoadError
+from .spanning_tree import tree_signs
+from .voxel_grid import group_mean
 
 __all__ = [
     "clean_mesh",

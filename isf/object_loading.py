@@ -50,18 +50,18 @@ import logging
 import numpy as np
 from scipy.spatial import cKDTree
 
-from isf.cloud_normals import estimate_normals, facing_away, orient_normals_mst, voxel_downsample
-from isf.exceptions import InvalidInputError, ObjectLoadError
-from isf.mesh_sampling import (
+from .cloud_normals import estimate_normals, facing_away, orient_normals_mst, voxel_downsample
+from .exceptions import InvalidInputError, ObjectLoadError
+from .mesh_sampling import (
     clean_mesh,
     orient_bodies,
     sample_by_area,
     triangle_normals,
     voxel_representatives,
 )
-from isf.object_readers import RawObject, read_source
-from isf.object_surface import ObjectSurface
-from isf.voxel_grid import voxel_labels
+from .object_readers import RawObject, read_source
+from .object_surface import ObjectSurface
+from .voxel_grid import voxel_labels
 
 __all__ = ["UNIT_FACTORS", "load_object"]
 

@@ -15,9 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from isf.exceptions import ObjectLoadError
-from isf.obj_reader import read_obj
-from isf.pcd_reader import read_pcd
+from .exceptions import ObjectLoadError
+from .obj_reader import read_obj
+from .pcd_reader import read_pcd
 
 __all__ = ["RawObject", "read_source"]
 

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from isf.exceptions import ObjectLoadError
+from .exceptions import ObjectLoadError
 
 __all__ = ["read_pcd"]
 

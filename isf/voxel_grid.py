@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from isf.exceptions import InvalidInputError
+from .exceptions import InvalidInputError
 
 __all__ = ["group_mean", "voxel_labels"]
 
