@@ -145,20 +145,14 @@ def _gaps(blocked):
     n = max(nx, ny, nz)
     line, out = np.empty(n), np.empty(n)
     site, bound = np.empty(n, np.int64), np.empty(n + 1)
-    for i in range(nx):  # along z, then y, then x
-        for j in range(ny):
-            _transform_line(gaps[i, j, :], out[:nz], site, bound)
-            gaps[i, j, :] = out[:nz]
-    for i in range(nx):
-        for k in range(nz):
-            line[:ny] = gaps[i, :, k]
-            _transform_line(line[:ny], out[:ny], site, bound)
-            gaps[i, :, k] = out[:ny]
-    for j in range(ny):
-        for k in range(nz):
-            line[:nx] = gaps[:, j, k]
-            _transform_line(line[:nx], out[:nx], site, bound)
-            gaps[:, j, k] = out[:nx]
+    for axes in ((0, 1, 2), (0, 2, 1), (1, 2, 0)):  # along z, then y, then x
+        view = gaps.transpose(axes)
+        m = view.shape[2]
+        for i in range(view.shape[0]):
+            for j in range(view.shape[1]):
+                line[:m] = view[i, j, :]
+                _transform_line(line[:m], out[:m], site, bound)
+                view[i, j, :] = out[:m]
     diagonal = float(nx * nx + ny * ny + nz * nz)
     for i in range(nx):
         for j in range(ny):

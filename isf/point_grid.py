@@ -61,36 +61,16 @@ def _cell_keys(points, lo, cell, shape):
 def ball_candidates(centre, radius, order, start, lo, cell, shape, out):
     """Indices of the points in the cells within a cell's width of the ball (``centre`` (3,),
     ``radius`` m), written to the front of ``out`` (N,) cell by cell; returns how many."""
-    first, last = np.empty(3, np.int64), np.empty(3, np.int64)
-    for d in range(3):
-        if centre[d] + radius < lo[d] - cell or centre[d] - radius > lo[d] + shape[d] * cell + cell:
-            return 0
-        first[d] = _cell_index(centre[d] - radius, lo[d], cell, shape[d]) - 1
-        last[d] = _cell_index(centre[d] + radius, lo[d], cell, shape[d]) + 1
-        first[d], last[d] = max(first[d], 0), min(last[d], shape[d] - 1)
-    n = 0
-    reach2 = (radius + cell) ** 2  # cells within a cell's width of the ball
-    for i in range(first[0], last[0] + 1):
-        gi = _gap(centre[0], lo[0] + i * cell, cell) ** 2
-        for j in range(first[1], last[1] + 1):
-            gij = gi + _gap(centre[1], lo[1] + j * cell, cell) ** 2
-            if gij > reach2:
-                continue
-            row = (i * shape[1] + j) * shape[2]
-            for k in range(first[2], last[2] + 1):
-                if gij + _gap(centre[2], lo[2] + k * cell, cell) ** 2 > reach2:
-                    continue
-                for m in range(start[row + k], start[row + k + 1]):
-                    out[n] = order[m]
-                    n += 1
-    return n
+    unbounded = np.full(3, np.inf)
+    return ball_box_candidates(centre, radius, np.eye(3), np.zeros(3), -unbounded, unbounded,
+                               order, start, lo, cell, shape, out)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def ball_box_candidates(centre, radius, R, origin, box_lo, box_hi, order, start, lo, cell, shape,
                         out):
-    """:func:`ball_candidates`, less the cells that lie wholly outside a box: the box
-    ``[box_lo, box_hi]`` ((3,) each, metres, infinite for none) in the frame of pose ``R``
+    """The points of :func:`ball_candidates`, less those of the cells wholly outside a box: the
+    box ``[box_lo, box_hi]`` ((3,) each, metres, infinite for none) in the frame of pose ``R``
     (3, 3), ``origin`` (3,) (a point ``x`` is at ``R^T (x - origin)`` in it). A cell is kept
     when its centre lies in the box grown by 0.87 cell widths on every side (a point of the
     cell is at most half its diagonal, 0.866 widths, from the centre), so every point of the
