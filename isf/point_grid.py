@@ -1,8 +1,9 @@
 """A fixed point set binned in a uniform grid, to find the points near a ball quickly.
 
-:func:`ball_candidates` lists the points of the grid cells within a cell's width of a ball
-(the extra width so that rounding never hides a point near a cell's faces): a superset of the
-points in the ball, without testing every point.
+:func:`ball_box_candidates` lists the points of the grid cells within a cell's width of a
+ball (the extra width so that rounding never hides a point near a cell's faces) that may hold
+points of a box given in another frame: a superset of the points in both, without testing
+every point.
 """
 
 from __future__ import annotations
@@ -10,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["PointGrid", "ball_box_candidates", "ball_candidates"]
+__all__ = ["PointGrid", "ball_box_candidates"]
 
 MAX_CELLS = 1 << 18
 """The cell grows beyond the asked size to keep the grid at most this many cells."""
@@ -22,7 +23,7 @@ class PointGrid:
 
     Attributes:
         points: the points, (N, 3).
-        arrays: ``(order, start, lo, cell, shape)`` for :func:`ball_candidates`: point indices
+        arrays: ``(order, start, lo, cell, shape)`` for :func:`ball_box_candidates`: point indices
             sorted by cell (N,), the first entry of each cell in ``order`` (C + 1,), the grid's
             corner (3,), cell width (m) and cells per axis (3,).
     """
@@ -58,23 +59,14 @@ def _cell_keys(points, lo, cell, shape):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def ball_candidates(centre, radius, order, start, lo, cell, shape, out):
-    """Indices of the points in the cells within a cell's width of the ball (``centre`` (3,),
-    ``radius`` m), written to the front of ``out`` (N,) cell by cell; returns how many."""
-    unbounded = np.full(3, np.inf)
-    return ball_box_candidates(centre, radius, np.eye(3), np.zeros(3), -unbounded, unbounded,
-                               order, start, lo, cell, shape, out)
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
 def ball_box_candidates(centre, radius, R, origin, box_lo, box_hi, order, start, lo, cell, shape,
                         out):
-    """The points of :func:`ball_candidates`, less those of the cells wholly outside a box: the
-    box ``[box_lo, box_hi]`` ((3,) each, metres, infinite for none) in the frame of pose ``R``
-    (3, 3), ``origin`` (3,) (a point ``x`` is at ``R^T (x - origin)`` in it). A cell is kept
-    when its centre lies in the box grown by 0.87 cell widths on every side (a point of the
-    cell is at most half its diagonal, 0.866 widths, from the centre), so every point of the
-    ball in the box is listed."""
+    """Indices of the points in the cells within a cell's width of the ball (``centre`` (3,),
+    ``radius`` m) whose centre lies in the box ``[box_lo, box_hi]`` ((3,) each, metres, infinite
+    for none) of the frame of pose ``R`` (3, 3), ``origin`` (3,) (a point ``x`` is at
+    ``R^T (x - origin)`` in it) grown by 0.87 cell widths on every side (a point of a cell is at
+    most half its diagonal, 0.866 widths, from its centre), so every point of the ball in the
+    box is listed; written to the front of ``out`` (N,) cell by cell; returns how many."""
     first, last = np.empty(3, np.int64), np.empty(3, np.int64)
     for d in range(3):
         if centre[d] + radius < lo[d] - cell or centre[d] - radius > lo[d] + shape[d] * cell + cell:
