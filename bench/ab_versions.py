@@ -21,22 +21,22 @@ Run from the repository root:
 
 from __future__ import annotations
 
-import _common  # noqa: I001  (first: pins BLAS/OpenMP threads before numpy is imported)
+import importlib
+import io
+import re
+import statistics
+import subprocess
+import sys
+import tarfile
+import tempfile
+import time
+from pathlib import Path
 
-import importlib  # noqa: E402
-import io  # noqa: E402
-import re  # noqa: E402
-import statistics  # noqa: E402
-import subprocess  # noqa: E402
-import sys  # noqa: E402
-import tarfile  # noqa: E402
-import tempfile  # noqa: E402
-import time  # noqa: E402
-from pathlib import Path  # noqa: E402
+import _common  # before numpy and isf: pins BLAS/OpenMP threads (see _common)
+import bench_hands
 
-import isf  # noqa: E402
-import bench_hands  # noqa: E402
-from isf import assets  # noqa: E402
+import isf
+from isf import assets
 
 PAPER_OBJECTS = ("bunny", "duck", "dragon")
 GRIPPERS = ("paper", "three", "allegro")
