@@ -11,6 +11,7 @@ file; the ``gripper`` frame is the URDF's root link.
 
 __version__ = "0.1.0"
 
+from .clearance import RepairConfig
 from .collision import CollisionChecker, CollisionReport, Plane
 from .config import FitConfig
 from .exceptions import (
@@ -56,6 +57,7 @@ __all__ = [
     "PluginLoadError",
     "Proposal",
     "QPStepError",
+    "RepairConfig",
     "Sampler",
     "SamplerNotFound",
     "__version__",

@@ -14,7 +14,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .clearance import ClearanceRepair, repair_penetration
+from .clearance import ClearanceRepair, RepairConfig, repair_penetration
 from .collision import CollisionChecker, CollisionReport, Plane
 from .config import FitConfig
 from .gripper import Gripper
@@ -32,7 +32,9 @@ class SampleJudge:
         gripper, obj, config: the gripper, the object surface and the fit parameters.
         obstacles: half-spaces the gripper must stay out of, object frame.
         tolerance: penetration depth tolerated, metres.
-        repair: repair colliding grasps (:func:`isf.clearance.repair_penetration`).
+        repair: repair colliding grasps (:func:`isf.clearance.repair_penetration`): True with
+            the default :class:`isf.RepairConfig`, or the repair parameters to use;
+            False for no repair.
 
     Attributes:
         fit_time: seconds spent repairing (the repair is fitting work), summed over calls.
@@ -40,10 +42,12 @@ class SampleJudge:
     """
 
     def __init__(self, gripper: Gripper, obj: ObjectSurface, config: FitConfig, *,
-                 obstacles: Sequence[Plane] = (), tolerance: float = 0.002, repair: bool = True):
+                 obstacles: Sequence[Plane] = (), tolerance: float = 0.002,
+                 repair: bool | RepairConfig = True):
         self.gripper, self.obj, self.config = gripper, obj, config
         self.checker = CollisionChecker(gripper, obj, obstacles=obstacles, tolerance=tolerance)
-        self.repairer = ClearanceRepair(gripper, obj, obstacles=obstacles) if repair else None
+        self.repairer = None if repair is False else ClearanceRepair(
+            gripper, obj, repair if isinstance(repair, RepairConfig) else None, obstacles=obstacles)
         self.fit_time = self.collision_time = 0.0
 
     def judge(self, result: FitResult) -> tuple[FitResult, CollisionReport]:

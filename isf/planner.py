@@ -47,6 +47,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .clearance import RepairConfig
 from .collision import CollisionReport, Plane
 from .config import FitConfig
 from .evaluation import SampleJudge, SampleWorker
@@ -201,7 +202,7 @@ def plan(
     collision_tolerance: float = 0.002,
     batch_size: int = BATCH_SIZE,
     workers: int = 1,
-    repair_collisions: bool = True,
+    repair_collisions: bool | RepairConfig = True,
     working_spacing: float | str | None = "auto",
     progress: Callable[[int, int, Grasp], None] | None = None,
 ) -> PlanResult:
@@ -224,7 +225,9 @@ def plan(
             on it (links pushed out of the object and obstacles while the contact surfaces are
             pulled back onto the object) and keep the repaired grasp if the re-check finds it
             collision-free. Its time counts as fit time, its re-check as collision time. False
-            gives the paper's Algorithm 3.
+            gives the paper's Algorithm 3. A :class:`isf.RepairConfig` repairs with
+            those parameters (True: the defaults; docs/hands.md gives a setting measured on
+            multi-fingered hands).
         progress: called after each sample as ``progress(done, total, grasp)``.
 
     Returns:
@@ -232,7 +235,8 @@ def plan(
 
     Raises:
         InvalidInputError: ``samples``, ``batch_size`` or ``workers`` is not a positive
-            integer, both ``batch_size`` and ``workers`` exceed 1,
+            integer, both ``batch_size`` and ``workers`` exceed 1, ``repair_collisions`` is
+            neither a bool nor a :class:`isf.RepairConfig`,
             ``working_spacing`` is neither "auto", None nor a spacing > 0, or the
             sampler proposed an invalid pose or joint vector.
         GripperDescriptionError, ObjectLoadError, SamplerNotFound: bad gripper, object or sampler.
@@ -248,6 +252,10 @@ def plan(
     if workers > 1 and batch_size > 1:
         raise InvalidInputError(f"batch_size={batch_size} and workers={workers}: choose lockstep "
                                 "batches or worker threads, not both (set one of them to 1)")
+    if not isinstance(repair_collisions, (bool, RepairConfig)):
+        raise InvalidInputError(
+            f"repair_collisions must be True, False or an isf.RepairConfig, got "
+            f"{type(repair_collisions).__name__}; pass e.g. isf.RepairConfig(max_rows=6)")
     config = FitConfig() if config is None else config
     gripper = gripper if isinstance(gripper, Gripper) else load_gripper(gripper)
     obj = obj if isinstance(obj, ObjectSurface) else load_object(obj)

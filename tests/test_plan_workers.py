@@ -22,17 +22,17 @@ def block():
     return isf.open_object("shape:box", scale=3.0, max_points=1500)
 
 
-def _window_reference(gripper, obj, samples, seed, window):
+def _window_reference(gripper, obj, samples, seed, window, repair_config=None):
     """The protocol of ``workers=W`` (``window`` = 1 for W = 1, else ``SAMPLES_PER_WORKER * W``),
     in one thread, from ``isf.fit``, the collision checker
-    and the repair: proposals in order with at most ``window`` awaiting their outcome, outcomes
-    reported in order. Returns the grasps by sample index and the number of repairs that were
-    kept."""
+    and the repair (with ``repair_config``): proposals in order with at most ``window`` awaiting
+    their outcome, outcomes reported in order. Returns the grasps by sample index and the number
+    of repairs that were kept."""
     sampler = isf.get_sampler("regret")
     rng = np.random.default_rng(seed)
     sampler.reset(obj, gripper, rng)
     checker = isf.CollisionChecker(gripper, obj)
-    repairer = ClearanceRepair(gripper, obj)
+    repairer = ClearanceRepair(gripper, obj, repair_config)
     kept_repairs = 0
 
     def evaluate(proposal):
@@ -82,6 +82,29 @@ def test_workers_give_the_window_protocol_grasps(hand, block, workers):
         assert grasp.fit.mean_distance == fit.mean_distance
         assert grasp.collision_free == report.collision_free
         assert grasp.collision.penetration == report.penetration
+
+
+def _assert_same_grasps(result, expected):
+    got = _by_index(result)
+    assert sorted(got) == sorted(expected)
+    for index, (fit, report) in expected.items():
+        np.testing.assert_array_equal(got[index].T_object_gripper, fit.T_object_gripper)
+        np.testing.assert_array_equal(got[index].q, fit.q)
+        assert got[index].collision_free == report.collision_free
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_repair_config_reaches_every_repair(hand, block, workers):
+    config = isf.RepairConfig(max_rows=6, iterations=3)
+    window = 1 if workers == 1 else isf.planner.SAMPLES_PER_WORKER * workers
+    expected, _ = _window_reference(hand, block, 8, seed=2, window=window, repair_config=config)
+    default, _ = _window_reference(hand, block, 8, seed=2, window=window)
+    # the parameters change some repaired grasp here, so a plan that ignored them would differ
+    assert any(not np.array_equal(expected[i][0].T_object_gripper, default[i][0].T_object_gripper)
+               for i in expected)
+    result = isf.plan(hand, block, samples=8, seed=2, workers=workers, working_spacing=None,
+                      repair_collisions=config)
+    _assert_same_grasps(result, expected)
 
 
 @pytest.mark.parametrize("workers, window", [(1, 1), (2, 4), (3, 6)])
@@ -135,6 +158,7 @@ def test_progress_is_reported_in_sample_order_from_the_calling_thread(hand, bloc
     ({"workers": 0}, "workers must be a positive integer"),
     ({"workers": 1.5}, "workers must be a positive integer"),
     ({"workers": 2, "batch_size": 2}, "not both"),
+    ({"repair_collisions": "yes"}, "repair_collisions must be True, False or an isf.RepairConfig"),
 ])
 def test_bad_worker_arguments(hand, block, kwargs, message):
     with pytest.raises(isf.InvalidInputError, match=message):
