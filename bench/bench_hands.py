@@ -23,17 +23,20 @@ time on two worker threads, ``workers=2``, the process then allowed two CPUs; an
 sequential loop, ``isf.plan``'s default); the last mode is the reference of the speed-up column; ``--objects N`` runs the first N objects only; ``--quick``: one object, 15
 samples, one run. ``--finger-damping`` sets ``FitConfig.finger_damping`` for both hands (a
 diagnostic: the default config's finger QP may fail to converge on a 16-joint hand; the run then
-reports the failures).
+reports the failures). ``--repair KEY=VALUE,...`` plans with ``isf.RepairConfig(KEY=VALUE, ...)``
+instead of the default repair (e.g. ``max_rows=6``, the setting docs/hands.md measures).
 
 Run from the repository root:
     python bench/bench_hands.py [--quick] [--repeats 3] [--budget 20] [--hands allegro-right]
                                 [--objects 1] [--modes w2,1] [--finger-damping 1e-6]
+                                [--repair max_rows=6]
 """
 
 from __future__ import annotations
 
 import _common  # noqa: I001  (first: pins BLAS/OpenMP threads before numpy is imported)
 
+import dataclasses  # noqa: E402
 import re  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
@@ -147,7 +150,8 @@ def bench(hand: str, gripper, obj, mode: _common.Mode, args) -> dict:
     _common.use_cpus(mode.workers)
     runs, failed = _common.run_repeats(
         lambda seed: _common.plan_once(gripper, obj, args.samples, seed, config,
-                                       batch_size=mode.batch_size, workers=mode.workers),
+                                       batch_size=mode.batch_size, workers=mode.workers,
+                                       repair_collisions=args.repair),
         args.repeats, _common.budget_or_none(args), catch=(isf.ISFError,))
     row = _common.median_row(runs, failed, args.repeats)
     row["hand"], row["object"], row["points"], row["mode"] = hand, obj.name, obj.n_points, mode
@@ -187,9 +191,11 @@ def report(rows: list[dict], note: str, args, deadline) -> list[str]:
          f"t_total({args.modes[-1].label}) / t_total", "target t_total (s)", "met?"], body)
     damping = ("the default `FitConfig`" if args.finger_damping is None else
                f"`FitConfig(finger_damping={args.finger_damping:g})` (NOT the default)")
+    repair = ("the default repair" if args.repair is None else
+              f"`{args.repair}` (NOT the default repair)")
     text = (f"{args.samples} samples, regret sampler, modes "
             f"{', '.join(m.label for m in args.modes)} (B: samples in lockstep in one thread, W: "
-            f"worker threads on as many CPUs), {damping}, "
+            f"worker threads on as many CPUs), {damping}, {repair}, "
             f"objects: {note}, at most "
             f"{MAX_POINTS} points; "
             f"up to {args.repeats} runs per row (budget {args.budget:g} s). CPU time: process "
@@ -199,6 +205,25 @@ def report(rows: list[dict], note: str, args, deadline) -> list[str]:
     return ["### Multi-fingered hands", text, table, *deadline.note(), *failures]
 
 
+def repair_config(parser, text: str) -> isf.RepairConfig:
+    """``isf.RepairConfig`` from ``KEY=VALUE,...`` (values as the fields' types)."""
+    kinds = {"int": int, "float": float, "bool": lambda v: v.lower() in ("1", "true")}
+    fields = {f.name: kinds[f.type] for f in dataclasses.fields(isf.RepairConfig)}
+    values = {}
+    for item in text.split(","):
+        key, _, value = item.partition("=")
+        if key not in fields or not value:
+            parser.error(f"--repair: {item!r} is not KEY=VALUE with KEY one of {sorted(fields)}")
+        try:
+            values[key] = fields[key](value)
+        except ValueError:
+            parser.error(f"--repair: {key} takes a number, got {value!r}")
+    try:
+        return isf.RepairConfig(**values)
+    except isf.ConfigError as err:
+        parser.error(f"--repair: {err}")
+
+
 def main() -> None:
     parser = _common.base_parser(__doc__.splitlines()[0], repeats=5, budget=60.0)
     parser.add_argument("--hands", default="three-finger,allegro-right",
@@ -206,6 +231,9 @@ def main() -> None:
     parser.add_argument("--finger-damping", type=float, default=None,
                         help="FitConfig.finger_damping for both hands (default: FitConfig's); a "
                              "diagnostic for finger QPs that fail to converge")
+    parser.add_argument("--repair", default=None, metavar="KEY=VALUE,...",
+                        help="plan with isf.RepairConfig(KEY=VALUE, ...) instead of the default "
+                             "repair, e.g. max_rows=6")
     parser.add_argument("--modes", default="w2,1",
                         help="comma-separated modes of isf.plan: a batch size (1: the paper's "
                              "sequential loop) or wN (N worker threads); default w2,1; the last "
@@ -220,6 +248,8 @@ def main() -> None:
         args.modes = [_common.Mode.parse(m) for m in args.modes.split(",")]
     except ValueError as err:
         parser.error(f"--modes: {err}")
+    if args.repair is not None:
+        args.repair = repair_config(parser, args.repair)
     if args.quick:
         args.repeats, args.objects = min(args.repeats, 1), 1
         args.samples = min(args.samples, QUICK_SAMPLES)
