@@ -188,7 +188,7 @@ def default_batch_size() -> int:
 
 
 def plan_once(gripper, obj, samples: int, seed: int, config=None, batch_size: int | None = None,
-              sampler="regret", repair_collisions: bool | None = None, **plan_kwargs) -> dict:
+              sampler="regret", repair_collisions=None, **plan_kwargs) -> dict:
     """One ``isf.plan``: wall and CPU time, stage times, counts, fit quality.
 
     Args:
@@ -197,7 +197,8 @@ def plan_once(gripper, obj, samples: int, seed: int, config=None, batch_size: in
             strictly sequential loop).
         sampler: a sampler name or instance (default the regret bandit).
         repair_collisions: passed to ``isf.plan`` (None: its default, on; False: the paper's
-            Algorithm 3 without the collision repair).
+            Algorithm 3 without the collision repair; an ``isf.RepairConfig``: the repair with
+            those parameters).
         **plan_kwargs: further keyword arguments of ``isf.plan`` (e.g. ``working_spacing``).
 
     Returns:

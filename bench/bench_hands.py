@@ -36,7 +36,6 @@ from __future__ import annotations
 
 import _common  # noqa: I001  (first: pins BLAS/OpenMP threads before numpy is imported)
 
-import dataclasses  # noqa: E402
 import re  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
@@ -46,6 +45,7 @@ import numpy as np  # noqa: E402
 
 import isf  # noqa: E402
 from isf import assets  # noqa: E402
+from isf.config import config_from_text  # noqa: E402
 
 SAMPLES = 60
 QUICK_SAMPLES = 15
@@ -206,20 +206,10 @@ def report(rows: list[dict], note: str, args, deadline) -> list[str]:
 
 
 def repair_config(parser, text: str) -> isf.RepairConfig:
-    """``isf.RepairConfig`` from ``KEY=VALUE,...`` (values as the fields' types)."""
-    kinds = {"int": int, "float": float, "bool": lambda v: v.lower() in ("1", "true")}
-    fields = {f.name: kinds[f.type] for f in dataclasses.fields(isf.RepairConfig)}
-    values = {}
-    for item in text.split(","):
-        key, _, value = item.partition("=")
-        if key not in fields or not value:
-            parser.error(f"--repair: {item!r} is not KEY=VALUE with KEY one of {sorted(fields)}")
-        try:
-            values[key] = fields[key](value)
-        except ValueError:
-            parser.error(f"--repair: {key} takes a number, got {value!r}")
+    """``isf.RepairConfig`` from ``KEY=VALUE,...`` (:func:`isf.config.config_from_text`)."""
+    words = dict(item.partition("=")[::2] for item in text.split(","))
     try:
-        return isf.RepairConfig(**values)
+        return config_from_text(isf.RepairConfig, words)
     except isf.ConfigError as err:
         parser.error(f"--repair: {err}")
 

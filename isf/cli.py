@@ -46,6 +46,11 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--workers", "-j", type=int, default=1, metavar="W",
                    help="threads that fit, check and repair samples side by side (default 1); the "
                         "sampler then learns each outcome up to 2W-1 samples late")
+    p.add_argument("--repair", action="append", default=[], metavar="KEY=VALUE",
+                   help="a parameter of the collision repair (isf.RepairConfig), e.g. max_rows=6 "
+                        "for a multi-fingered hand (repeatable)")
+    p.add_argument("--no-repair", action="store_true",
+                   help="keep colliding fits as they are (the paper's Algorithm 3)")
     p.add_argument("--units", choices=("m", "cm", "mm"), default="m", help="units of the object file (default m)")
     p.add_argument("--scale", type=float, default=1.0, help="extra scale factor for the object")
     p.add_argument("--table", type=float, default=None, metavar="Z",
@@ -116,7 +121,9 @@ def _one_line(err: Exception) -> str:
 
 # ----------------------------------------------------------------------------- commands
 def _cmd_plan(args: argparse.Namespace) -> int:
+    from .clearance import RepairConfig
     from .collision import Plane
+    from .config import config_from_text
     from .exceptions import InvalidInputError
     from .gripper_loading import load_gripper
     from .object_specs import open_object
@@ -135,6 +142,10 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     if args.batch_size > 1 and args.workers > 1:
         raise InvalidInputError("--batch-size and --workers cannot both exceed 1: choose lockstep "
                                 "batches or worker threads")
+    if args.no_repair and args.repair:
+        raise InvalidInputError("--no-repair and --repair exclude each other: drop one")
+    repair = False if args.no_repair else (
+        config_from_text(RepairConfig, _pairs(args.repair, "--repair")) if args.repair else True)
     gripper = load_gripper(args.gripper)
     obj = open_object(args.object_spec, units=args.units, scale=args.scale)
     obstacles = [Plane.table(args.table)] if args.table is not None else []
@@ -144,7 +155,7 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     progress = _ProgressBar(sys.stderr) if show else None
     result = plan(gripper, obj, samples=args.samples, sampler=sampler, seed=args.seed,
                   batch_size=args.batch_size, workers=args.workers,
-                  obstacles=obstacles, progress=progress)
+                  obstacles=obstacles, repair_collisions=repair, progress=progress)
     if progress:
         progress.close()
     write_plan_json(result, out, top=args.top)

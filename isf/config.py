@@ -26,7 +26,7 @@ from dataclasses import asdict, dataclass, fields
 
 from .exceptions import ConfigError
 
-__all__ = ["FitConfig"]
+__all__ = ["FitConfig", "config_from_text"]
 
 PAPER_PAIRS = 512
 """Pairs the paper's ``delta_e`` refers to (two fingers x 256 points)."""
@@ -114,10 +114,43 @@ class FitConfig:
     @classmethod
     def from_dict(cls, values: dict) -> FitConfig:
         """Build from a dict, rejecting unknown keys with the list of valid ones."""
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(values) - known)
-        if unknown:
-            raise ConfigError(
-                f"unknown FitConfig keys {unknown}; valid keys are {sorted(known)}"
-            )
+        _reject_unknown(cls, values)
         return cls(**values)
+
+
+def _reject_unknown(cls: type, keys) -> None:
+    """Raise ConfigError naming the keys that are not fields of dataclass ``cls``."""
+    known = {f.name for f in fields(cls)}
+    unknown = sorted(set(keys) - known)
+    if unknown:
+        raise ConfigError(f"unknown {cls.__name__} keys {unknown}; valid keys are {sorted(known)}")
+
+
+_TEXT_TYPES = {"int": int, "float": float, "str": str}
+
+
+def config_from_text(cls: type, values: dict[str, str]):
+    """A parameter dataclass (:class:`FitConfig`, :class:`isf.RepairConfig`) from text, e.g.
+    command-line words ``KEY=VALUE``: each value read as its field's type (``true``/``false``
+    for flags), the rest left at their defaults.
+
+    Raises:
+        ConfigError: an unknown key (the message lists the valid ones), a value that does not
+            read as its field's type, or a value the dataclass rejects.
+    """
+    _reject_unknown(cls, values)
+    types = {f.name: f.type for f in fields(cls)}
+    typed = {}
+    for key, text in values.items():
+        if types[key] == "bool":
+            if text.lower() not in ("true", "false"):
+                raise ConfigError(f"{cls.__name__}.{key} takes true or false, got {text!r}")
+            typed[key] = text.lower() == "true"
+            continue
+        try:
+            typed[key] = _TEXT_TYPES[types[key]](text)
+        except ValueError:
+            raise ConfigError(
+                f"{cls.__name__}.{key} takes {'an integer' if types[key] == 'int' else 'a number'}, "
+                f"got {text!r}") from None
+    return cls(**typed)

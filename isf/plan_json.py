@@ -10,6 +10,7 @@ import json
 import math
 import os
 import tempfile
+from dataclasses import asdict
 from pathlib import Path
 
 from .planner import Grasp, PlanResult
@@ -74,6 +75,7 @@ def plan_to_dict(result: PlanResult, *, top: int | None = None) -> dict:
             "workers": s.workers,
         },
         "config": result.config.to_dict(),
+        "repair": None if result.repair is None else asdict(result.repair),
     }
 
 

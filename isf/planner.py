@@ -164,6 +164,7 @@ class PlanResult:
         sampler: the sampler's name.
         seed: the seed the run used.
         config: the fit parameters.
+        repair: the collision repair's parameters; None when the run did not repair.
     """
 
     grasps: tuple[Grasp, ...]
@@ -173,6 +174,7 @@ class PlanResult:
     sampler: str
     seed: int | None
     config: FitConfig = field(default_factory=FitConfig)
+    repair: RepairConfig | None = None
 
     @property
     def best(self) -> Grasp | None:
@@ -299,7 +301,10 @@ def plan(
         fit_time=fit_time, collision_time=collision_time, setup_time=setup_time,
         batch_size=int(batch_size), surface_points=obj.n_points, workers=int(workers),
     )
-    return PlanResult(tuple(grasps), stats, gripper.name, obj.name, sampler.name, seed, config)
+    repair = None if repair_collisions is False else (
+        repair_collisions if isinstance(repair_collisions, RepairConfig) else RepairConfig())
+    return PlanResult(tuple(grasps), stats, gripper.name, obj.name, sampler.name, seed, config,
+                      repair)
 
 
 def _in_lockstep(sampler: Sampler, rng: np.random.Generator, samples: int, batch_size: int,

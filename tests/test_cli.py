@@ -1,5 +1,6 @@
 """The command line end to end: exit codes, JSON schema, one-line errors, no partial output."""
 
+import dataclasses
 import json
 import subprocess
 import sys
@@ -45,6 +46,36 @@ def test_plan_with_worker_threads(tmp_path, schema):
     assert data["stats"]["workers"] == 2 and len(data["grasps"]) == 6
 
 
+def test_plan_with_repair_parameters_gives_the_library_plan(tmp_path, schema):
+    import numpy as np
+
+    import isf
+
+    out = tmp_path / "grasps.json"
+    proc = run("plan", "-g", "three-finger", "-o", "shape:cylinder", "-n", "4", "--seed", "3",
+               "--repair", "max_rows=6", "--repair", "iterations=3", "--out", str(out), "--quiet")
+    assert proc.returncode in (0, 1), proc.stderr
+    data = json.loads(out.read_text())
+    jsonschema.validate(data, schema)
+    config = isf.RepairConfig(max_rows=6, iterations=3)
+    assert data["repair"] == json.loads(json.dumps(dataclasses.asdict(config)))
+    cylinder = isf.open_object("shape:cylinder")
+    result = isf.plan("three-finger", cylinder, samples=4, seed=3, repair_collisions=config)
+    poses = [np.asarray(g.T_object_gripper).tolist() for g in result.grasps]
+    assert [g["T_object_gripper"] for g in data["grasps"]] == poses
+    default = isf.plan("three-finger", cylinder, samples=4, seed=3)  # the parameters matter here
+    assert [np.asarray(g.T_object_gripper).tolist() for g in default.grasps] != poses
+
+    proc = run("plan", "-g", "paper-parallel", "-o", "shape:cylinder", "-n", "2", "--no-repair",
+               "--out", str(out), "--quiet")
+    assert proc.returncode in (0, 1), proc.stderr
+    assert json.loads(out.read_text())["repair"] is None
+    proc = run("plan", "-g", "paper-parallel", "-o", "shape:cylinder", "-n", "2", "--no-repair",
+               "--repair", "max_rows=6", "--out", str(tmp_path / "none.json"))
+    assert proc.returncode == 2 and "exclude each other" in proc.stderr
+    assert not (tmp_path / "none.json").exists()
+
+
 def test_plan_with_table_and_units(tmp_path, schema):
     mesh = tmp_path / "box_mm.stl"
     import trimesh
@@ -68,6 +99,9 @@ def test_plan_with_table_and_units(tmp_path, schema):
         (["--object", "box_mm.stl"], "units"),
         (["--workers", "0"], "--workers"),
         (["--workers", "2", "--batch-size", "2"], "--workers"),
+        (["--repair", "max_rowz=6"], "max_rowz"),
+        (["--repair", "max_rows=six"], "RepairConfig.max_rows takes an integer"),
+        (["--repair", "max_rows"], "--repair 'max_rows' must look like NAME=VALUE"),
     ],
 )
 def test_bad_input_is_one_line_exit_2_and_no_file(tmp_path, args, message):

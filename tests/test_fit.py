@@ -5,6 +5,7 @@ import pytest
 
 import isf
 from _builders import random_rotation
+from isf.config import config_from_text
 from isf.se3 import make_transform, rotation_angle
 
 GROOVE_RADIUS = 0.008  # docs/bundled-grippers.md: paper-parallel groove radius
@@ -218,3 +219,22 @@ def test_a_gripper_without_joints_fits_by_its_palm_alone(tmp_path):
     assert result.T_object_gripper[2, 3] == pytest.approx(0.0185, abs=1e-6)
     assert result.mean_distance < 1e-6 and result.q.shape == (0,)
     assert isf.plan(tool, box, samples=4, seed=0).stats.collision_free >= 1
+
+
+def test_config_from_text_reads_each_value_as_its_field_type():
+    cfg = config_from_text(isf.FitConfig, {"levels": "3", "tolerance": "0.01", "lock_fingers": "true",
+                                           "outlier_scope": "fit"})
+    assert cfg == isf.FitConfig(levels=3, tolerance=0.01, lock_fingers=True, outlier_scope="fit")
+    assert config_from_text(isf.RepairConfig, {"max_rows": "6"}) == isf.RepairConfig(max_rows=6)
+
+
+@pytest.mark.parametrize("values, message", [
+    ({"max_rowz": "6"}, r"unknown RepairConfig keys \['max_rowz'\]; valid keys are"),
+    ({"max_rows": "6.5"}, "RepairConfig.max_rows takes an integer, got '6.5'"),
+    ({"margin": "thin"}, "RepairConfig.margin takes a number"),
+    ({"lock_palm": "yes"}, "RepairConfig.lock_palm takes true or false"),
+    ({"max_rows": "0"}, "RepairConfig.max_rows must be an integer >= 1"),
+])
+def test_config_from_text_names_a_bad_key_or_value(values, message):
+    with pytest.raises(isf.ConfigError, match=message):
+        config_from_text(isf.RepairConfig, values)
