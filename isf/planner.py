@@ -301,10 +301,9 @@ def plan(
         fit_time=fit_time, collision_time=collision_time, setup_time=setup_time,
         batch_size=int(batch_size), surface_points=obj.n_points, workers=int(workers),
     )
-    repair = None if repair_collisions is False else (
-        repair_collisions if isinstance(repair_collisions, RepairConfig) else RepairConfig())
+    repairer = judges[0].repairer  # the parameters the run repaired with, as the judges took them
     return PlanResult(tuple(grasps), stats, gripper.name, obj.name, sampler.name, seed, config,
-                      repair)
+                      None if repairer is None else repairer.config)
 
 
 def _in_lockstep(sampler: Sampler, rng: np.random.Generator, samples: int, batch_size: int,
