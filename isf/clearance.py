@@ -35,9 +35,13 @@ Pinocchio's frame Jacobian of its link, gripper frame).
 
   ``mu_i`` is ``margin`` for links without a contact surface and ``-contact_allowance`` for the
   links that carry one (a fingertip may press into the object a little). Rows are used for
-  points within ``activation`` of their floor, the deepest ``max_rows`` per element. One slack
-  ``s_e`` per element (weight ``slack_weight``) keeps the QP feasible when a step cannot
-  remove all penetration at once. Only the rows that may be used, or be the deepest, are
+  points within ``activation`` of their floor, the deepest ``max_rows`` per element (two by
+  default). One slack ``s_e`` per element (weight ``slack_weight``) keeps the QP feasible when a
+  step cannot remove all penetration at once. Few rows per element is deliberate: a link across
+  a thin or curved part of the object has deep points whose tangent planes face opposite ways,
+  and rows from both sides, sharing one slack, cancel each other's push so the step stalls; the
+  deepest two mostly lie on one side, the step moves the link out that way, and the next step
+  linearises afresh (measured in ``docs/benchmarks.md``, eleventh session). Only the rows that may be used, or be the deepest, are
   computed in full: a sample's 6 tangent planes are looked up only when the plane of its
   nearest dense point (a lower bound of its height) leaves it in doubt
   (``isf.repair_rows.undecided``), and an object point inside a convex element only while
@@ -104,7 +108,8 @@ class RepairConfig:
         margin: clearance asked of geometry of links without a contact surface, metres.
         contact_allowance: depth the geometry of contact-surface links may reach, metres.
         activation: gripper points closer to the object than this (plus ``margin``) get a
-            clearance row, metres; points farther away are ignored in that step.
+            clearance row, metres; points farther away are ignored in that step (a step is at
+            most ``max_translation_step`` long, and the next step sees what it pushed in).
         contact_reach: contact-surface points within this distance of the object are kept on
             it (``hold`` mode); the outlier floor of the pairs (``pull`` mode), metres.
         max_normal_angle: a contact point is kept only when its normal is within this angle of
@@ -120,7 +125,8 @@ class RepairConfig:
         slack_weight: weight of the squared penetration an element keeps after a step, per mm^2.
         contact_weight: weight of each kept contact point's squared residual, per mm^2.
         max_rows: at most this many clearance rows per geometry element and step (the
-            deepest points).
+            deepest points). More rows let points whose tangent planes face opposite ways
+            constrain one link at once, and such repairs stall (see the module docs).
         regularisation: weight of squared step size, in mm^2 of contact residual per
             (mm of palm translation)^2; rotations and joints are weighted as if they moved
             points ``lever`` metres away from the axis.
@@ -132,7 +138,7 @@ class RepairConfig:
     tolerance: float = 0.00025
     margin: float = 0.0005
     contact_allowance: float = 0.001
-    activation: float = 0.008
+    activation: float = 0.004
     contact_reach: float = 0.004
     max_normal_angle: float = 1.5
     max_translation_step: float = 0.005
@@ -143,7 +149,7 @@ class RepairConfig:
     object_spacing: float = 0.0015
     slack_weight: float = 1e4
     contact_weight: float = 1.0
-    max_rows: int = 12
+    max_rows: int = 2
     regularisation: float = 1e-2
     lever: float = 0.03
     lock_palm: bool = False

@@ -181,9 +181,11 @@ def reference_violations(repairer: ClearanceRepair, T, R, p):
             np.r_[normals, rows.normal])
 
 
-def test_repair_rows_at_random_states_are_those_of_a_full_evaluation(hand_on_cylinder):
+@pytest.mark.parametrize("config", [isf.RepairConfig(),  # the default: two rows per element
+                                    isf.RepairConfig(max_rows=12, activation=0.008)])
+def test_repair_rows_at_random_states_are_those_of_a_full_evaluation(hand_on_cylinder, config):
     gripper, obj = hand_on_cylinder
-    repairer = ClearanceRepair(gripper, obj)
+    repairer = ClearanceRepair(gripper, obj, config)
     assert repairer._resampled  # the dense planes differ from the object's own points
     rng = np.random.default_rng(3)
     n_used = 0
@@ -197,15 +199,18 @@ def test_repair_rows_at_random_states_are_those_of_a_full_evaluation(hand_on_cyl
         rows = repairer._violations(T, R, p)
         violation, element, normal = reference_violations(repairer, T, R, p)
         used = repairer._active_rows(rows.violation, rows.element)
-        expected = reference_deepest(violation, element)
+        expected = reference_deepest(violation, element, config.activation, config.max_rows)
         # the same rows; their values to round-off (the checks' compiled tangent-plane heights
         # sum in another order than this reference's einsum)
         np.testing.assert_allclose(rows.violation[used], violation[expected], rtol=1e-12, atol=1e-17)
         np.testing.assert_array_equal(rows.element[used], element[expected])
         np.testing.assert_allclose(rows.normal[used], normal[expected], rtol=0, atol=1e-15)
-        assert rows.violation.max() == pytest.approx(violation.max(), rel=1e-12, abs=1e-17)
+        if len(violation):  # the deepest row is always computed
+            assert rows.violation.max() == pytest.approx(violation.max(), rel=1e-12, abs=1e-17)
+        else:  # nothing within reach
+            assert len(rows.violation) == 0
         n_used += len(used)
-    assert n_used > 50  # the states did touch the object
+    assert n_used > 4 * config.max_rows  # the states did touch the object
 
 
 @pytest.mark.parametrize("keep_mesh", [True, False])
