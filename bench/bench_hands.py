@@ -205,13 +205,14 @@ def report(rows: list[dict], note: str, args, deadline) -> list[str]:
     return ["### Multi-fingered hands", text, table, *deadline.note(), *failures]
 
 
-def repair_config(parser, text: str) -> isf.RepairConfig:
-    """``isf.RepairConfig`` from ``KEY=VALUE,...`` (:func:`isf.config.config_from_text`)."""
+def repair_config(parser, text: str, option: str = "--repair") -> isf.RepairConfig:
+    """``isf.RepairConfig`` from ``KEY=VALUE,...`` (:func:`isf.config.config_from_text`); a bad
+    key or value is a parser error that names ``option``."""
     words = dict(item.partition("=")[::2] for item in text.split(","))
     try:
         return config_from_text(isf.RepairConfig, words)
     except isf.ConfigError as err:
-        parser.error(f"--repair: {err}")
+        parser.error(f"{option}: {err}")
 
 
 def main() -> None:

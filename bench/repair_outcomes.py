@@ -134,7 +134,7 @@ def main() -> None:
     corpus = pickle.loads(Path(args.corpus).read_bytes())
     warm_up()
     by_depth, shares, by_rule = [], [], []
-    for name, (gripper, obj) in configurations().items():
+    for name, (gripper, obj) in configurations(list(corpus)).items():
         cases = corpus.get(name)
         if not cases:
             continue
