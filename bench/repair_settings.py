@@ -19,10 +19,11 @@ the default ``RepairConfig()`` is always compared too, as ``default``. Two comma
   paired difference to the default (mean and standard error, the pairs higher and lower), the
   mean fit error of the collision-free grasps and the CPU time per plan.
 
-Run from the repository root, e.g.
-``python bench/repair_settings.py corpus /tmp/corpus.pkl --setting old:max_rows=12,activation=0.008``
-or ``python bench/repair_settings.py plans --gripper three --objects 2 --seeds 0-7 --setting
-old:max_rows=12,activation=0.008``.
+Run from the repository root, e.g.::
+
+    python bench/repair_settings.py corpus /tmp/corpus.pkl --setting old:max_rows=12,activation=0.008
+    python bench/repair_settings.py plans --gripper three --objects 2 --seeds 0-7 \
+        --setting old:max_rows=12,activation=0.008
 """
 
 from __future__ import annotations
@@ -134,9 +135,9 @@ def corpus_report(path: str, configs: dict[str, isf.RepairConfig], quick: bool):
             totals[name][1] += len(passed)
             totals[name][2] += cpu
             totals[name][3] += steps
-            passes.append([label, name, len(cases), f"{passed.sum()} (-{(base & ~passed).sum()} "
-                           f"+{(~base & passed).sum()})", f"{cpu:.2f}", steps,
-                           _common.fmt(1e3 * distance[every].mean()) if every.any() else "-"])
+            changes = f"-{(base & ~passed).sum()} +{(~base & passed).sum()}"
+            passes.append([label, name, len(cases), f"{passed.sum()} ({changes})", f"{cpu:.2f}",
+                           steps, _common.fmt(1e3 * distance[every].mean()) if every.any() else "-"])
         for name, (passed, _, _, _, record) in outcome.items():
             if name == "default":
                 continue
@@ -211,16 +212,17 @@ def plans_report(gripper_name: str, count: int, seeds: list[int],
         d = a[:, 0] - base[:, 0]
         error = d.std(ddof=1) / np.sqrt(len(d)) if len(d) > 1 else np.nan
         rows.append([name, len(a), _common.fmt(a[:, 0].mean()),
-                     f"{d.mean():+.2f} +- {_common.fmt(error, 2)}", f"{(d > 0).sum()} / {(d < 0).sum()}",
+                     f"{d.mean():+.2f} +- {_common.fmt(error, 2)}",
+                     f"{(d > 0).sum()} / {(d < 0).sum()}",
                      _common.fmt(a[:, 1].mean()), _common.fmt(1e3 * np.nanmean(a[:, 2])),
                      _common.fmt(np.median(a[:, 3])), _common.fmt(np.median(a[:, 3] / base[:, 3]))])
-    return [f"#### {gripper_name}: {count} objects x seeds {seeds[0]}..{seeds[-1]}, 60 samples, "
-            "one thread",
+    return [(f"#### {gripper_name}: {count} objects x seeds {seeds[0]}..{seeds[-1]}, "
+             "60 samples, one thread"),
             _common.markdown_table(["setting", "plans", "collision-free per plan",
                                     "difference to default (mean +- s.e.)", "pairs higher / lower",
                                     "valid per plan", "mean fit error of collision-free (mm)",
-                                    "CPU s per plan (median)", "CPU time, setting / default "
-                                    "(median of pairs)"], rows)]
+                                    "CPU s per plan (median)",
+                                    "CPU time, setting / default (median of pairs)"], rows)]
 
 
 def main() -> None:

@@ -41,9 +41,9 @@ Pinocchio's frame Jacobian of its link, gripper frame).
   a thin or curved part of the object has deep points whose tangent planes face opposite ways,
   and rows from both sides, sharing one slack, cancel each other's push so the step stalls; the
   deepest two mostly lie on one side, the step moves the link out that way, and the next step
-  linearises afresh (measured in ``docs/benchmarks.md``, eleventh session). Only the rows that may be used, or be the deepest, are
-  computed in full: a sample's 6 tangent planes are looked up only when the plane of its
-  nearest dense point (a lower bound of its height) leaves it in doubt
+  linearises afresh (measured in ``docs/hands.md``). Only the rows that may be used, or be the
+  deepest, are computed in full: a sample's 6 tangent planes are looked up only when the plane
+  of its nearest dense point (a lower bound of its height) leaves it in doubt
   (``isf.repair_rows.undecided``), and an object point inside a convex element only while
   it may be among the element's ``max_rows`` deepest.
 * Joint limits are hard bounds on ``q + dq``; every step is also held in a trust region.
