@@ -17,7 +17,8 @@ the default ``RepairConfig()`` is always compared too, as ``default``. Two comma
   ``bench_hands.py``), ``--objects N`` of them, seeds ``--seeds``, every setting on the same
   (object, seed) pairs in turn, one thread: collision-free and valid grasps per plan and the
   paired difference to the default (mean and standard error, the pairs higher and lower), the
-  mean fit error of the collision-free grasps and the CPU time per plan.
+  mean fit error of the collision-free grasps that touch the object and the CPU time per
+  plan; ``--on-table`` puts each object on a table (a plane through its lowest point).
 
 Run from the repository root, e.g.::
 
@@ -41,6 +42,7 @@ from table1 import DEFAULT_OBJECTS
 
 import isf
 from isf import clearance
+from isf.collision import Plane
 from isf.compiled import warm_up
 from isf.evaluation import SampleJudge
 from isf.lockstep import score_fit
@@ -189,21 +191,25 @@ def seed_list(parser, text: str) -> list[int]:
 
 
 def plans_report(gripper_name: str, count: int, seeds: list[int],
-                 configs: dict[str, isf.RepairConfig]):
-    """The table of the ``plans`` command."""
+                 configs: dict[str, isf.RepairConfig], on_table: bool = False):
+    """The table of the ``plans`` command; ``on_table``: each object rests on a table (a plane
+    through its lowest point, normal +z), which every link must also keep clear of."""
     warm_up()
     gripper, objects = plan_objects(gripper_name, count)
     for config in configs.values():  # the repairers' caches, once
         isf.plan(gripper, objects[0], samples=3, seed=99, repair_collisions=config)
     runs = {name: [] for name in configs}
     for obj in objects:
+        table = [Plane.table(float(obj.points[:, 2].min()))] if on_table else []
         for seed in seeds:
             for name, config in configs.items():
                 start = time.process_time()
-                result = isf.plan(gripper, obj, samples=60, seed=seed, repair_collisions=config)
+                result = isf.plan(gripper, obj, samples=60, seed=seed, repair_collisions=config,
+                                  obstacles=table)
                 cpu = time.process_time() - start
                 free = [g for g in result.grasps if g.collision_free]
-                error = np.mean([g.fit.mean_distance for g in free]) if free else np.nan
+                touching = [g.fit.mean_distance for g in free if np.isfinite(g.fit.mean_distance)]
+                error = np.mean(touching) if touching else np.nan
                 runs[name].append((len(free), sum(g.valid for g in result.grasps), error, cpu))
     base = np.array(runs["default"])
     rows = []
@@ -217,7 +223,7 @@ def plans_report(gripper_name: str, count: int, seeds: list[int],
                      _common.fmt(a[:, 1].mean()), _common.fmt(1e3 * np.nanmean(a[:, 2])),
                      _common.fmt(np.median(a[:, 3])), _common.fmt(np.median(a[:, 3] / base[:, 3]))])
     return [(f"#### {gripper_name}: {count} objects x seeds {seeds[0]}..{seeds[-1]}, "
-             "60 samples, one thread"),
+             f"60 samples, one thread{', on a table' if on_table else ''}"),
             _common.markdown_table(["setting", "plans", "collision-free per plan",
                                     "difference to default (mean +- s.e.)", "pairs higher / lower",
                                     "valid per plan", "mean fit error of collision-free (mm)",
@@ -235,6 +241,8 @@ def main() -> None:
                         help="plans: the gripper (default paper)")
     parser.add_argument("--objects", type=int, default=2, help="plans: objects (default 2)")
     parser.add_argument("--seeds", default="0-3", help="plans: seeds, A-B or A,B,... (default 0-3)")
+    parser.add_argument("--on-table", action="store_true",
+                        help="plans: each object rests on a table the gripper must keep clear of")
     args = parser.parse_args()
     configs = settings(parser, args.setting)
     started, header = time.perf_counter(), _common.machine_description()
@@ -245,7 +253,7 @@ def main() -> None:
     else:
         seeds = seed_list(parser, args.seeds)
         sections = plans_report(args.gripper, 1 if args.quick else args.objects,
-                                seeds[:1] if args.quick else seeds, configs)
+                                seeds[:1] if args.quick else seeds, configs, args.on_table)
     _common.finish("repair_settings: collision-repair settings compared", [
         "Settings (fields that differ from `RepairConfig()`): " + "; ".join(
             f"`{name}`: {changed(config) or 'the default'}" for name, config in configs.items()),
