@@ -119,6 +119,15 @@ def collect(path: str, corpus_name: str = "first",
     Path(path).write_bytes(pickle.dumps(corpus))
 
 
+def stored_configurations(path: str):
+    """Every configuration of the corpus file ``path`` that has stored fits: ``(name, gripper,
+    object as isf.plan fits it (its working surface), fits)``."""
+    corpus = pickle.loads(Path(path).read_bytes())
+    for name, (gripper, obj) in configurations(list(corpus)).items():
+        if corpus[name]:
+            yield name, gripper, working_surface(obj, resolve_spacing("auto", gripper)), corpus[name]
+
+
 def same(a, b) -> bool:
     """Whether two repair answers (as tuples) are bit-identical."""
     return all(np.array_equal(x, y) for x, y in zip(a, b))
@@ -126,15 +135,10 @@ def same(a, b) -> bool:
 
 def replay(path: str, repeats: int) -> None:
     """Repair the stored fits with this isf; print times and differences."""
-    corpus = pickle.loads(Path(path).read_bytes())
     warm_up()
     print("| configuration | repairs | ms per repair, median (min-max) | set-up ms, first / "
           "again | differing |\n|---|---|---|---|---|")
-    for name, (gripper, obj) in configurations(list(corpus)).items():
-        cases = corpus[name]
-        if not cases:
-            continue
-        obj = working_surface(obj, resolve_spacing("auto", gripper))  # as isf.plan does
+    for name, gripper, obj, cases in stored_configurations(path):
         start = time.process_time()
         repairer = clearance.ClearanceRepair(gripper, obj)
         first = time.process_time() - start

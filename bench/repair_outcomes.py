@@ -19,19 +19,16 @@ first 8 fits of each configuration).
 
 from __future__ import annotations
 
-import pickle
 import time
 from itertools import pairwise
-from pathlib import Path
 
 import _common  # before numpy and isf: pins BLAS/OpenMP threads (see _common)
 import numpy as np
-from bench_repair import configurations
+from bench_repair import stored_configurations
 
 import isf
 from isf.compiled import warm_up
 from isf.evaluation import SampleJudge
-from isf.working_surface import resolve_spacing, working_surface
 
 DEPTH_BINS_MM = (0.0, 1.0, 3.0, 6.0, 10.0, 15.0, 20.0, 30.0, np.inf)
 
@@ -131,14 +128,9 @@ def main() -> None:
     parser.add_argument("corpus", help="the corpus file (bench/bench_repair.py --collect)")
     args = parser.parse_args()
     started, header = time.perf_counter(), _common.machine_description()
-    corpus = pickle.loads(Path(args.corpus).read_bytes())
     warm_up()
     by_depth, shares, by_rule = [], [], []
-    for name, (gripper, obj) in configurations(list(corpus)).items():
-        cases = corpus.get(name)
-        if not cases:
-            continue
-        obj = working_surface(obj, resolve_spacing("auto", gripper))  # as isf.plan does
+    for name, gripper, obj, cases in stored_configurations(args.corpus):
         judge = SampleJudge(gripper, obj, isf.FitConfig())
         cases = cases[:8] if args.quick else cases
         repairs = repair_all(judge, cases)

@@ -30,14 +30,14 @@ Run from the repository root, e.g.::
 from __future__ import annotations
 
 import dataclasses
-import pickle
+import tempfile
 import time
 from pathlib import Path
 
 import _common  # before numpy and isf: pins BLAS/OpenMP threads (see _common)
 import bench_hands
 import numpy as np
-from bench_repair import configurations
+from bench_repair import stored_configurations
 from table1 import DEFAULT_OBJECTS
 
 import isf
@@ -47,7 +47,6 @@ from isf.compiled import warm_up
 from isf.evaluation import SampleJudge
 from isf.lockstep import score_fit
 from isf.result import FitStatus
-from isf.working_surface import resolve_spacing, working_surface
 
 
 def settings(parser, texts: list[str]) -> dict[str, isf.RepairConfig]:
@@ -108,14 +107,10 @@ def opposed_normals(repairer: clearance.ClearanceRepair) -> list[float]:
 
 def corpus_report(path: str, configs: dict[str, isf.RepairConfig], quick: bool):
     """The tables of the ``corpus`` command."""
-    corpus = pickle.loads(Path(path).read_bytes())
     warm_up()
     passes, opposition, totals = [], [], {name: [0, 0, 0.0, 0] for name in configs}
-    for label, (gripper, obj) in configurations(list(corpus)).items():
-        cases = corpus[label][:8] if quick else corpus[label]
-        if not cases:
-            continue
-        obj = working_surface(obj, resolve_spacing("auto", gripper))  # as isf.plan does
+    for label, gripper, obj, cases in stored_configurations(path):
+        cases = cases[:8] if quick else cases
         checker = SampleJudge(gripper, obj, isf.FitConfig(), repair=False).checker
         outcome = {}
         for name, config in configs.items():
@@ -175,8 +170,6 @@ def plan_objects(gripper_name: str, count: int):
     objects, _ = bench_hands.load_objects(count)
     if gripper_name == "three":
         return isf.load_gripper("three-finger"), objects
-    import tempfile
-
     return bench_hands.tagged_allegro(Path(tempfile.mkdtemp())), objects
 
 
