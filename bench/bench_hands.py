@@ -24,12 +24,13 @@ sequential loop, ``isf.plan``'s default); the last mode is the reference of the 
 samples, one run. ``--finger-damping`` sets ``FitConfig.finger_damping`` for both hands (a
 diagnostic: the default config's finger QP may fail to converge on a 16-joint hand; the run then
 reports the failures). ``--repair KEY=VALUE,...`` plans with ``isf.RepairConfig(KEY=VALUE, ...)``
-instead of the default repair (e.g. ``max_rows=6``, the setting docs/hands.md measures).
+instead of the default repair (e.g. ``max_rows=12,activation=0.008``, the old default that
+docs/hands.md measures).
 
 Run from the repository root:
     python bench/bench_hands.py [--quick] [--repeats 3] [--budget 20] [--hands allegro-right]
                                 [--objects 1] [--modes w2,1] [--finger-damping 1e-6]
-                                [--repair max_rows=6]
+                                [--repair max_rows=12,activation=0.008]
 """
 
 from __future__ import annotations
@@ -224,7 +225,7 @@ def main() -> None:
                              "diagnostic for finger QPs that fail to converge")
     parser.add_argument("--repair", default=None, metavar="KEY=VALUE,...",
                         help="plan with isf.RepairConfig(KEY=VALUE, ...) instead of the default "
-                             "repair, e.g. max_rows=6")
+                             "repair, e.g. max_rows=12,activation=0.008")
     parser.add_argument("--modes", default="w2,1",
                         help="comma-separated modes of isf.plan: a batch size (1: the paper's "
                              "sequential loop) or wN (N worker threads); default w2,1; the last "

@@ -47,8 +47,8 @@ def _parser() -> argparse.ArgumentParser:
                    help="threads that fit, check and repair samples side by side (default 1); the "
                         "sampler then learns each outcome up to 2W-1 samples late")
     p.add_argument("--repair", action="append", default=[], metavar="KEY=VALUE",
-                   help="a parameter of the collision repair (isf.RepairConfig), e.g. max_rows=6 "
-                        "for a multi-fingered hand (repeatable)")
+                   help="a parameter of the collision repair (isf.RepairConfig), e.g. iterations=10 "
+                        "(repeatable; docs/hands.md measures its rows)")
     p.add_argument("--no-repair", action="store_true",
                    help="keep colliding fits as they are (the paper's Algorithm 3)")
     p.add_argument("--units", choices=("m", "cm", "mm"), default="m", help="units of the object file (default m)")

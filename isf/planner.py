@@ -228,8 +228,8 @@ def plan(
             pulled back onto the object) and keep the repaired grasp if the re-check finds it
             collision-free. Its time counts as fit time, its re-check as collision time. False
             gives the paper's Algorithm 3. A :class:`isf.RepairConfig` repairs with
-            those parameters (True: the defaults; docs/hands.md gives a setting measured on
-            multi-fingered hands).
+            those parameters (True: the defaults, measured against other settings in
+            docs/hands.md).
         progress: called after each sample as ``progress(done, total, grasp)``.
 
     Returns:
@@ -257,7 +257,7 @@ def plan(
     if not isinstance(repair_collisions, (bool, RepairConfig)):
         raise InvalidInputError(
             f"repair_collisions must be True, False or an isf.RepairConfig, got "
-            f"{type(repair_collisions).__name__}; pass e.g. isf.RepairConfig(max_rows=6)")
+            f"{type(repair_collisions).__name__}; pass e.g. isf.RepairConfig(iterations=10)")
     config = FitConfig() if config is None else config
     gripper = gripper if isinstance(gripper, Gripper) else load_gripper(gripper)
     obj = obj if isinstance(obj, ObjectSurface) else load_object(obj)
