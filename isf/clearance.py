@@ -69,7 +69,7 @@ import numpy as np
 import osqp
 import scipy.sparse as sp
 
-from .collision import Plane, object_voxels
+from .collision import Plane, checked_state, object_voxels
 from .collision_surface import NEIGHBOURS
 from .collision_voxels import kernel_arrays
 from .config import FitConfig
@@ -334,12 +334,14 @@ class ClearanceRepair:
 
         Raises:
             ConfigError: an unknown ``contacts`` mode.
+            InvalidInputError: ``T_object_gripper`` is not a finite rigid transform or ``q`` does
+                not hold one finite value per joint.
         """
         if contacts not in ("pull", "hold", "none"):
             raise ConfigError(f"contacts must be 'pull', 'hold' or 'none', got {contacts!r}")
         cfg, g = self.config, self.gripper
-        T = np.array(T_object_gripper, dtype=float)
-        q = g.clip(np.asarray(q, dtype=float))
+        T, q = checked_state(g, T_object_gripper, q)
+        q = g.clip(q)
         before = held = None
         last = np.inf  # contact residual of the previous step
         best = ((np.inf, np.inf), T, q, np.inf)
@@ -378,6 +380,8 @@ class ClearanceRepair:
                 break
             last = residual
             active = self._active_rows(rows.violation, rows.element)
+            if not len(active) and not len(contact[0]):
+                break  # no row near its floor and no contact to pull: no step to take
             owner, local = rows.owner[active], rows.local[active]
             centre = contact[0].mean(axis=0) if len(contact[0]) else \
                 to_object(T, R, p, owner, local).mean(axis=0)

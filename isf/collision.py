@@ -119,6 +119,27 @@ def _rigid(T):
             and abs(T[3, 3] - 1.0) <= 1e-12)
 
 
+def checked_state(gripper: Gripper, T_object_gripper, q) -> tuple[np.ndarray, np.ndarray]:
+    """A gripper state as the compiled checks and the repair take it: ``T_object_gripper`` as a
+    C-ordered float copy (4, 4) and ``q`` as floats (n_joints,).
+
+    Raises:
+        InvalidInputError: ``T_object_gripper`` is not a finite rigid transform, or ``q`` does not
+            hold ``n_joints`` finite values (non-finite input would reach the compiled kernels).
+    """
+    T = np.array(T_object_gripper, dtype=float, order="C")  # a writeable copy: one compiled type
+    if T.shape != (4, 4) or not np.isfinite(T).all():
+        raise InvalidInputError(f"T_object_gripper must be a finite 4x4 homogeneous transform, "
+                                f"got shape {T.shape}; pass the fitted palm pose")
+    if not _rigid(T):
+        raise InvalidInputError("T_object_gripper is not a rigid transform (rotation not "
+                                "orthonormal or last row not [0 0 0 1]); re-orthonormalise it")
+    q = np.asarray(q, dtype=float).reshape(-1)
+    if q.shape != (gripper.n_joints,) or not np.isfinite(q).all():
+        raise InvalidInputError(f"q must hold {gripper.n_joints} finite joint values, got {q.shape}")
+    return T, q
+
+
 def _bvh(vertices: np.ndarray, faces: np.ndarray) -> coal.BVHModelOBBRSS:
     """A coal BVH of a triangle mesh."""
     model = coal.BVHModelOBBRSS()
@@ -278,26 +299,13 @@ class CollisionChecker:
         self._distance_request, self._distance = coal.DistanceRequest(), coal.DistanceResult()
 
     # ------------------------------------------------------------------- check
-    def _check_inputs(self, T_object_gripper, q) -> tuple[np.ndarray, np.ndarray]:
-        T = np.array(T_object_gripper, dtype=float, order="C")  # a writeable copy: one compiled type
-        if T.shape != (4, 4) or not np.isfinite(T).all():
-            raise InvalidInputError(f"T_object_gripper must be a finite 4x4 homogeneous transform, "
-                                    f"got shape {T.shape}; pass the fitted palm pose")
-        if not _rigid(T):
-            raise InvalidInputError("T_object_gripper is not a rigid transform (rotation not "
-                                    "orthonormal or last row not [0 0 0 1]); re-orthonormalise it")
-        q = np.asarray(q, dtype=float).reshape(-1)
-        if q.shape != (self.gripper.n_joints,) or not np.isfinite(q).all():
-            raise InvalidInputError(f"q must hold {self.gripper.n_joints} finite joint values, got {q.shape}")
-        return T, q
-
     def check(self, T_object_gripper: np.ndarray, q: np.ndarray) -> CollisionReport:
         """Check the gripper at palm pose ``T_object_gripper`` (4, 4) and joints ``q`` (n_joints,).
 
         Raises:
             InvalidInputError: ``T_object_gripper`` is not a rigid transform or ``q`` has the wrong size.
         """
-        T, q = self._check_inputs(T_object_gripper, q)
+        T, q = checked_state(self.gripper, T_object_gripper, q)
         links = self.gripper.frame_kinematics_many(q[None], self._frame_ids)
         poses, depth, where, clearance, candidates, owner, nearest, estimates = check_elements(
             T, links.rotations[0], links.positions[0], self.tolerance, *self._kernel_args)

@@ -7,6 +7,8 @@ closed-form answers for a box pushed out of a slab and for a hinged finger that 
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -283,6 +285,33 @@ def test_repair_config_rejects_bad_values():
     with pytest.raises(isf.ISFError, match="contacts"):
         ClearanceRepair(hinge_gripper(0.01, 0.0, ((0, 0, 0), (0.01, 0.01, 0.01))), slab()).repair(
             np.eye(4), np.array([0.0]), contacts="sometimes")
+
+
+def test_repair_rejects_a_non_finite_state():
+    # such a state would reach the compiled row kernels, which index arrays by its coordinates
+    repairer = ClearanceRepair(hinge_gripper(0.01, 0.0, ((0, 0, 0), (0.01, 0.01, 0.01))), slab())
+    T = np.eye(4)
+    T[0, 3] = np.nan
+    with pytest.raises(isf.InvalidInputError, match="finite 4x4"):
+        repairer.repair(T, np.array([0.0]))
+    with pytest.raises(isf.InvalidInputError, match="finite joint"):
+        repairer.repair(np.eye(4), np.array([np.nan]))
+
+
+def test_repair_with_nothing_to_push_or_pull_stops_where_it_is():
+    # pull mode whose normal test admits no pair (no contact rows), and a hand 0.5 m above the
+    # slab (no clearance row near its floor): there is no step to take. Before, the step's
+    # rotation centre was the mean of no points (NaN), and the poses after it NaN.
+    hand = isf.load_gripper("three-finger")
+    T = np.eye(4)
+    T[2, 3] = 0.5
+    repairer = ClearanceRepair(hand, slab(), RepairConfig(max_normal_angle=1e-9))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no "mean of empty slice"
+        out = repairer.repair(T, hand.q_initial)
+    assert out.iterations == 0 and out.depth_before == 0.0 == out.depth_after
+    np.testing.assert_array_equal(out.T_object_gripper, T)
+    np.testing.assert_array_equal(out.q, hand.q_initial)
 
 
 # -------------------------------------------------------------------- three-finger hand
