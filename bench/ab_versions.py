@@ -5,8 +5,11 @@ versions timed in separate runs cannot be told apart to a few per cent. This scr
 at ``--base`` (a git revision) as a second package, ``isf_base``, and plans the same (object,
 seed) pairs with it and with the working tree's isf, alternating which goes first. Per gripper
 it reports the median ``t_total`` of each (process CPU time in one thread, wall time with
-``--workers``), the median and mean of the paired ratios base / current, and whether the two
-versions found the same number of collision-free grasps in every pair.
+``--workers``), the median and mean of the paired ratios base / current, whether the two
+versions found the same number of collision-free grasps in every pair, and, for a change that
+alters results, each version's mean collision-free count per plan and mean fitting error of the
+collision-free grasps (``FitResult.mean_distance``), with the paired difference of the counts
+(mean and standard error over the pairs).
 
 The base is extracted once per revision into the temporary folder (``isf-base-<sha>``), where
 numba caches its kernels: the first run compiles them (about two minutes). Objects: the paper
@@ -95,13 +98,15 @@ def setup(package, gripper: str) -> tuple[object, list]:
                                 package_dirs=dirs), objects
 
 
-def plan(package, gripper, obj, seed: int, workers: int) -> tuple[float, int]:
-    """``(seconds, collision-free grasps)`` of one plan: CPU time in one thread, else wall."""
+def plan(package, gripper, obj, seed: int, workers: int) -> tuple[float, int, list[float]]:
+    """``(seconds, collision-free grasps, their fitting errors (m))`` of one plan: CPU time in
+    one thread, else wall."""
     sampler = importlib.import_module(f"{package.__name__}.samplers.regret").RegretSampler()
     c0, t0 = time.process_time(), time.perf_counter()
     result = package.plan(gripper, obj, samples=60, seed=seed, workers=workers, sampler=sampler)
     seconds = time.perf_counter() - t0 if workers > 1 else time.process_time() - c0
-    return seconds, sum(g.collision_free for g in result.grasps)
+    errors = [g.fit.mean_distance for g in result.grasps if g.collision_free]
+    return seconds, len(errors), errors
 
 
 def main() -> None:
@@ -127,27 +132,39 @@ def main() -> None:
         setups = {v: setup(p, name) for v, p in versions.items()}
         for v, (gripper, objects) in setups.items():  # first plans build the memos
             plan(versions[v], gripper, objects[0], 99, args.workers)
-        times = {v: [] for v in versions}
+        times, free, errors = ({v: [] for v in versions} for _ in range(3))
         agree = True
         for pair, (seed, k) in enumerate((s, k) for s in range(seeds)
                                          for k in range(len(setups["base"][1]))):
             counts = {}
             for v in (("base", "current") if pair % 2 == 0 else ("current", "base")):
                 gripper, objects = setups[v]
-                seconds, counts[v] = plan(versions[v], gripper, objects[k], seed, args.workers)
+                seconds, counts[v], fit_errors = plan(versions[v], gripper, objects[k], seed,
+                                                      args.workers)
                 times[v].append(seconds)
+                free[v].append(counts[v])
+                errors[v] += fit_errors
             agree = agree and counts["base"] == counts["current"]
         ratios = [b / c for b, c in zip(times["base"], times["current"])]
+        gained = [c - b for b, c in zip(free["base"], free["current"])]
+        error_of_mean = (statistics.stdev(gained) / len(gained) ** 0.5 if len(gained) > 1
+                         else float("nan"))
         rows.append([name, len(ratios), _common.fmt(statistics.median(times["base"])),
                      _common.fmt(statistics.median(times["current"])),
                      _common.fmt(statistics.median(ratios)), _common.fmt(statistics.fmean(ratios)),
-                     "yes" if agree else "no"])
+                     "yes" if agree else "no",
+                     *(f"{statistics.fmean(free[v]):.2f}" for v in versions),
+                     f"{statistics.fmean(gained):+.2f} +- {error_of_mean:.2f}",
+                     *(_common.fmt(1e3 * statistics.fmean(errors[v])) if errors[v] else "-"
+                       for v in versions)])
         print(f"# {name}: paired base / current {statistics.median(ratios):.3f}", flush=True)
     clock = "CPU" if args.workers == 1 else "wall"
     table = _common.markdown_table(
         ["gripper", "paired plans", f"base ({sha}): t_total ({clock}, s)",
          f"current: t_total ({clock}, s)", "base / current, median", "mean",
-         "same collision-free counts"], rows)
+         "same collision-free counts", "collision-free per plan, base", "current",
+         "current - base (mean +- s.e.)",
+         "fit error (mm), base", "current"], rows)
     _common.finish(f"ab_versions: {sha} against the working tree, {args.workers} thread(s)",
                    [table], started, header, args.out)
 
