@@ -8,7 +8,7 @@ it reports the median ``t_total`` of each (process CPU time in one thread, wall 
 ``--workers``), the median and mean of the paired ratios base / current, whether the two
 versions found the same number of collision-free grasps in every pair, and, for a change that
 alters results, each version's mean collision-free count per plan and mean fitting error of the
-collision-free grasps (``FitResult.mean_distance``), with the paired difference of the counts
+collision-free grasps (``FitResult.mean_distance``, over those with pairs), with the paired difference of the counts
 (mean and standard error over the pairs).
 
 The base is extracted once per revision into the temporary folder (``isf-base-<sha>``), where
@@ -19,13 +19,14 @@ default planner with a regret sampler made by its own version.
 
 Run from the repository root:
     python bench/ab_versions.py --base d2161d0 [--grippers paper,three,allegro] [--seeds 4]
-        [--workers 2]
+        [--first-seed 0] [--workers 2]
 """
 
 from __future__ import annotations
 
 import importlib
 import io
+import math
 import re
 import statistics
 import subprocess
@@ -109,12 +110,21 @@ def plan(package, gripper, obj, seed: int, workers: int) -> tuple[float, int, li
     return seconds, len(errors), errors
 
 
+def error_cell(errors: list[float]) -> str:
+    """The mean fitting error (mm) of collision-free grasps with pairs, and how many had none
+    (their ``mean_distance`` is infinite: no contact point matched the object)."""
+    finite = [e for e in errors if math.isfinite(e)]
+    cell = _common.fmt(1e3 * statistics.fmean(finite)) if finite else "-"
+    return cell + (f" ({len(errors) - len(finite)} without pairs)" if len(finite) < len(errors) else "")
+
+
 def main() -> None:
     parser = _common.base_parser(__doc__.splitlines()[0], repeats=1, budget=0.0)
     parser.add_argument("--base", required=True, help="the git revision to compare against")
     parser.add_argument("--grippers", default=",".join(GRIPPERS),
                         help="comma-separated: paper, three, allegro (default all)")
-    parser.add_argument("--seeds", type=int, default=4, help="seeds 0..N-1 (default 4)")
+    parser.add_argument("--seeds", type=int, default=4, help="seeds per object (default 4)")
+    parser.add_argument("--first-seed", type=int, default=0, help="the first seed (default 0)")
     parser.add_argument("--workers", type=int, default=1, help="worker threads (default 1)")
     args = parser.parse_args()
     grippers = args.grippers.split(",")
@@ -134,7 +144,8 @@ def main() -> None:
             plan(versions[v], gripper, objects[0], 99, args.workers)
         times, free, errors = ({v: [] for v in versions} for _ in range(3))
         agree = True
-        for pair, (seed, k) in enumerate((s, k) for s in range(seeds)
+        for pair, (seed, k) in enumerate((s, k) for s in range(args.first_seed,
+                                                                 args.first_seed + seeds)
                                          for k in range(len(setups["base"][1]))):
             counts = {}
             for v in (("base", "current") if pair % 2 == 0 else ("current", "base")):
@@ -155,8 +166,7 @@ def main() -> None:
                      "yes" if agree else "no",
                      *(f"{statistics.fmean(free[v]):.2f}" for v in versions),
                      f"{statistics.fmean(gained):+.2f} +- {error_of_mean:.2f}",
-                     *(_common.fmt(1e3 * statistics.fmean(errors[v])) if errors[v] else "-"
-                       for v in versions)])
+                     *(error_cell(errors[v]) for v in versions)])
         print(f"# {name}: paired base / current {statistics.median(ratios):.3f}", flush=True)
     clock = "CPU" if args.workers == 1 else "wall"
     table = _common.markdown_table(

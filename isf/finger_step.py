@@ -1,4 +1,7 @@
-"""The IPFO finger step: a bounded least-squares QP over the joint vector, solved by OSQP.
+"""The IPFO finger step: a bounded least-squares QP over the joint vector.
+
+It is solved exactly by a certified active set (:mod:`isf.box_qp`); OSQP solves any step the
+active set cannot certify.
 
 With the palm fixed, moving the joints by ``dq`` moves contact point ``i`` by
 ``R J_i dq`` (``J_i`` its point Jacobian in the gripper frame) and turns its
@@ -129,8 +132,8 @@ def finger_steps(
     The QP is strictly convex, so when the minimiser of its objective lies inside the
     bounds it *is* the QP's solution. With one joint the bounded solution is that minimiser
     clipped (the paper's eq. 12-13), for all fits at once. With more joints every fit goes
-    to the compiled active set (:func:`isf.box_qp.solve_box_qps`), whose first round is
-    that minimiser; its answer is kept where the KKT conditions certify it, and only the
+    to the compiled active sets (:func:`isf.box_qp.solve_box_qps`), whose first round is
+    that minimiser; their answer is kept where the KKT conditions certify it, and only the
     rest go to their OSQP problem (``qps[b]``, set up once per fit, updated and
     warm-started; :func:`solve_uncertified`).
 
