@@ -11,6 +11,10 @@ file; the ``gripper`` frame is the URDF's root link.
 
 __version__ = "0.1.0"
 
+from .kernel_cache import refresh_installed as _refresh_kernel_cache
+
+_refresh_kernel_cache()  # before any kernel loads: drop cached kernels whose sources changed
+
 from .clearance import RepairConfig
 from .collision import CollisionChecker, CollisionReport, Plane
 from .config import FitConfig
