@@ -228,8 +228,8 @@ class ClearanceRepair:
                  *, obstacles: Sequence[Plane] = ()):
         if not gripper.geometries:
             raise GripperDescriptionError(gripper.name, [
-                "it has no link geometry to keep out of the object; give its links <collision> "
-                "elements"])
+                ("it has no link geometry to keep out of the object; give its links <collision> "
+                 "elements")])
         self.gripper, self.object, self.obstacles = gripper, obj, tuple(obstacles)
         self.config = cfg = RepairConfig() if config is None else config
         rng = np.random.default_rng(0)  # the object's resampling, then the gripper's samples
@@ -577,6 +577,7 @@ def repair_penetration(gripper: Gripper, obj: ObjectSurface, fit_result: FitResu
     Raises:
         GripperDescriptionError: the gripper has no link geometry.
         ConfigError: an unknown ``contacts`` mode.
+        InvalidInputError: the fit's pose or joints are not finite (or the pose not rigid).
     """
     repairer = ClearanceRepair(gripper, obj, config) if repairer is None else repairer
     out = repairer.repair(fit_result.T_object_gripper, fit_result.q, contacts=contacts)

@@ -9,8 +9,8 @@ a kernel at its first call and caches the machine code on disk (in the package's
 ``__pycache__`` folders, or in numba's user cache when those are read-only;
 ``NUMBA_CACHE_DIR`` moves it; :mod:`isf.kernel_cache` drops cached kernels whose sources
 changed, or the sources of the modules they use). So the first run after installing or
-upgrading isf compiles them (about a minute on a 2-core machine, compiling the engine's and the checks' kernels in
-two processes), and later runs load them in about a second.
+upgrading isf compiles them (about a minute on a 2-core machine, compiling the engine's and
+the checks' kernels in two processes), and later runs load them in about a second.
 
 :func:`warm_up` compiles (or loads) every kernel on tiny inputs of the types the engine
 passes, so that the cost lands where the caller wants it: ``isf plan`` calls it before
