@@ -356,6 +356,14 @@ def fmt(value: float, digits: int = 3) -> str:
     return f"{value:.{digits}g}"
 
 
+def mean_and_error(differences: Sequence[float]) -> str:
+    """Paired differences as ``"+M.MM +- E.EE"``: their mean and its standard error (``nan``
+    for a single pair)."""
+    values = list(differences)
+    error = statistics.stdev(values) / len(values) ** 0.5 if len(values) > 1 else float("nan")
+    return f"{statistics.fmean(values):+.2f} +- {error:.2f}"
+
+
 # --------------------------------------------------------------------------- machine
 
 

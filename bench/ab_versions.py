@@ -8,8 +8,8 @@ it reports the median ``t_total`` of each (process CPU time in one thread, wall 
 ``--workers``), the median and mean of the paired ratios base / current, whether the two
 versions found the same number of collision-free grasps in every pair, and, for a change that
 alters results, each version's mean collision-free count per plan and mean fitting error of the
-collision-free grasps (``FitResult.mean_distance``, over those with pairs), with the paired difference of the counts
-(mean and standard error over the pairs).
+collision-free grasps (``FitResult.mean_distance``, over those with pairs), with the paired
+difference of the counts (mean and standard error over the pairs).
 
 The base is extracted once per revision into the temporary folder (``isf-base-<sha>``), where
 numba caches its kernels: the first run compiles them (about two minutes). Objects: the paper
@@ -158,14 +158,12 @@ def main() -> None:
             agree = agree and counts["base"] == counts["current"]
         ratios = [b / c for b, c in zip(times["base"], times["current"])]
         gained = [c - b for b, c in zip(free["base"], free["current"])]
-        error_of_mean = (statistics.stdev(gained) / len(gained) ** 0.5 if len(gained) > 1
-                         else float("nan"))
         rows.append([name, len(ratios), _common.fmt(statistics.median(times["base"])),
                      _common.fmt(statistics.median(times["current"])),
                      _common.fmt(statistics.median(ratios)), _common.fmt(statistics.fmean(ratios)),
                      "yes" if agree else "no",
                      *(f"{statistics.fmean(free[v]):.2f}" for v in versions),
-                     f"{statistics.fmean(gained):+.2f} +- {error_of_mean:.2f}",
+                     _common.mean_and_error(gained),
                      *(error_cell(errors[v]) for v in versions)])
         print(f"# {name}: paired base / current {statistics.median(ratios):.3f}", flush=True)
     clock = "CPU" if args.workers == 1 else "wall"

@@ -68,9 +68,7 @@ def main() -> None:
         rows.append(cells)
     total = ["**all pairs**", f"{len(names) * seeds} runs per size"] + [""] * len(sizes)
     for b in sizes[:-1]:
-        d = pairs[b]
-        se = statistics.stdev(d) / len(d) ** 0.5 if len(d) > 1 else float("nan")
-        total.append(f"**{statistics.fmean(d):+.2f} +- {se:.2f}**")
+        total.append(f"**{_common.mean_and_error(pairs[b])}**")
     rows.append(total + [""] * len(sizes))
     table = _common.markdown_table(
         ["object", "seeds"] + [f"collision-free, {b.label}" for b in sizes]

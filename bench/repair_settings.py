@@ -210,9 +210,7 @@ def plans_report(gripper_name: str, count: int, seeds: list[int],
     for name, values in runs.items():
         a = np.array(values)
         d = a[:, 0] - base[:, 0]
-        error = d.std(ddof=1) / np.sqrt(len(d)) if len(d) > 1 else np.nan
-        rows.append([name, len(a), _common.fmt(a[:, 0].mean()),
-                     f"{d.mean():+.2f} +- {_common.fmt(error, 2)}",
+        rows.append([name, len(a), _common.fmt(a[:, 0].mean()), _common.mean_and_error(d),
                      f"{(d > 0).sum()} / {(d < 0).sum()}",
                      _common.fmt(a[:, 1].mean()), _common.fmt(1e3 * np.nanmean(a[:, 2])),
                      _common.fmt(np.median(a[:, 3])), _common.fmt(np.median(a[:, 3] / base[:, 3]))])
