@@ -220,8 +220,9 @@ class ClearanceRepair:
     Raises:
         GripperDescriptionError: the gripper has no link geometry.
 
-    A repairer remembers each contact point's last nearest object point (to start the next
-    search from), so give each thread its own (as :class:`isf.evaluation.SampleJudge` does).
+    A repairer remembers each contact point's and gripper sample's last nearest object point
+    (to start the next search from), so give each thread its own (as
+    :class:`isf.evaluation.SampleJudge` does).
     """
 
     def __init__(self, gripper: Gripper, obj: ObjectSurface, config: RepairConfig | None = None,
@@ -245,6 +246,7 @@ class ClearanceRepair:
         self._contact = (gripper.point_link.astype(np.int64), gripper.points_link,
                          gripper.normals_link)
         self._contact_guess = np.full(gripper.n_points, -1, np.int64)  # pull mode's last answers
+        self._sample_guess = np.full(len(self._owner), -1, np.int64)  # this repair's last answers
         self._cos_limit = -np.cos(cfg.max_normal_angle) if cfg.max_normal_angle < np.pi else np.inf
         # Millimetre units in the QP: x_mm = x * scale (v in mm, w in rad, revolute dq in rad,
         # prismatic in mm); a row a (metres of height per SI unit of x) becomes a * unit (mm
@@ -268,8 +270,9 @@ class ClearanceRepair:
         return k.rotations[0], k.positions[0], np.concatenate([k.J_linear[0], k.J_angular[0]], axis=1)
 
     # ------------------------------------------------------------ object side
-    def _sample_rows(self, world: np.ndarray, floor: np.ndarray, element: np.ndarray,
-                     known: _Rows) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _sample_rows(self, world: np.ndarray, guess: np.ndarray, floor: np.ndarray,
+                     element: np.ndarray, known: _Rows
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Clearance rows of gripper samples against the object's tangent planes.
 
         A sample's height above the object is that of the tangent plane (of the 6 nearest
@@ -287,18 +290,20 @@ class ClearanceRepair:
 
         Args:
             world: the samples, object frame, (M, 3).
+            guess: an object point index near each sample to search from, -1 for none (M,).
             floor, element: their floors (M,), metres, and geometry elements (M,).
             known: the state's other clearance rows.
 
         Returns:
             (indices (K,) of the samples kept, their plane normals (K, 3), their violations
-            ``floor - height`` (K,), metres).
+            ``floor - height`` (K,), metres, and each sample's nearest object point (M,), -1
+            where it was not searched: beyond reach and, by the voxels, outside).
         """
         obj, cfg = self.object, self.config
         reach = cfg.activation + cfg.margin + 2.0 * obj.spacing
         planes = self._planes
         return sample_rows(
-            np.ascontiguousarray(world, dtype=np.float64), floor, element, known.violation,
+            np.ascontiguousarray(world, dtype=np.float64), guess, floor, element, known.violation,
             known.element, len(self.gripper.geometries), cfg.activation, cfg.max_rows,
             _BOUND_SLACK, reach, (obj.points, obj.normals, obj.search.tree), self._voxel_arrays,
             (planes.points, planes.normals, planes.tree.tree, min(NEIGHBOURS, len(planes.points))),
@@ -342,6 +347,7 @@ class ClearanceRepair:
         cfg, g = self.config, self.gripper
         T, q = checked_state(g, T_object_gripper, q)
         q = g.clip(q)
+        self._sample_guess[:] = -1  # the samples' searches start from their last answers
         before = held = None
         last = np.inf  # contact residual of the previous step
         best = ((np.inf, np.inf), T, q, np.inf)
@@ -426,7 +432,10 @@ class ClearanceRepair:
         sel = self._near_samples(T, R, p)
         owner, local, element = self._owner[sel], self._points_link[sel], self._element[sel]
         world = to_object(T, R, p, owner, local)
-        keep, normals, violation = self._sample_rows(world, self._floor[sel], element, known)
+        guess = self._sample_guess[sel]
+        keep, normals, violation, nearest = self._sample_rows(world, guess, self._floor[sel],
+                                                              element, known)
+        self._sample_guess[sel] = np.where(nearest >= 0, nearest, guess)
         samples = _Rows(owner[keep], local[keep], normals, violation, element[keep])
         return _Rows(*(np.concatenate(v) for v in zip(samples, known)))
 

@@ -58,14 +58,19 @@ def _evaluate(query, points, normals, tree, k):
 
 
 class TangentPlanes:
-    """Surface points (M, 3) with outward unit normals (M, 3), ``spacing`` metres apart."""
+    """Surface points (M, 3) with outward unit normals (M, 3), ``spacing`` metres apart.
 
-    def __init__(self, points: np.ndarray, normals: np.ndarray, spacing: float):
+    ``graph``: the search also walks the points' Delaunay graph from a guess
+    (:class:`isf.nearest.NearestPoints`), worth its set-up where many searches start near
+    their answer.
+    """
+
+    def __init__(self, points: np.ndarray, normals: np.ndarray, spacing: float, graph: bool = False):
         self.points = np.ascontiguousarray(points, dtype=float)
         self.normals = np.ascontiguousarray(normals, dtype=float)
         self.spacing = float(spacing)
         """Typical distance between neighbouring points, metres."""
-        self.tree = NearestPoints(self.points, leaf_size=TREE_LEAF_SIZE)
+        self.tree = NearestPoints(self.points, leaf_size=TREE_LEAF_SIZE, graph=graph)
         """Exact nearest-neighbour search on ``points``."""
 
     def evaluate(self, query: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

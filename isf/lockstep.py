@@ -90,7 +90,7 @@ class LockstepFitter:
         for array, value in zip(slots[2:6], self.gripper.link_kinematics_many(q[None])):
             array[b] = value[0]
         slots[6][b] = kernel.RUNNING
-        slots[17][b] = False  # the nearest-point cache
+        slots[14][b] = -1  # no nearest object points yet
         self._history[-1][b] = 0
         kernel.enter_level(b, self.config.levels - 1, slots, self._grip, self._fit_params)
         self._keys[b], self._started[b] = key, time.perf_counter()
@@ -134,11 +134,11 @@ class LockstepFitter:
     def _result(self, b: int) -> FitResult:
         """The finished fit of slot ``b`` scored on its final state; the slot is freed."""
         T, q, R, p, status = (a[b] for a in self._slots[:4] + (self._slots[6],))
-        cache = tuple(a[b] for a in self._slots[14:18])
+        last = self._slots[14][b]
         self._slots[6][b] = kernel.EMPTY
         elapsed = time.perf_counter() - self._started[b]
         return _scored(self.gripper, self.obj, self.config, self._grip, T.copy(), q.copy(), R, p,
-                       cache, _STATUS[int(status)], self._records(b), elapsed)
+                       last, _STATUS[int(status)], self._records(b), elapsed)
 
     def _records(self, b: int) -> tuple[IterationRecord, ...]:
         count = int(self._history[-1][b])
@@ -155,14 +155,13 @@ class LockstepFitter:
         """Empty slot and history arrays for ``n_slots`` fits (see
         :func:`isf.lockstep_kernel.run`)."""
         g, S = self.gripper, n_slots
-        n, L, P, K = g.n_joints, len(g.contact_links), g.n_points, kernel.CANDIDATES
+        n, L, P = g.n_joints, len(g.contact_links), g.n_points
         H, n_ipfo = self._history_length, self.config.max_ipfo_iterations
         slots = (np.zeros((S, 4, 4)), np.zeros((S, n)), np.zeros((S, L, 3, 3)), np.zeros((S, L, 3)),
                  np.zeros((S, L, 3, n)), np.zeros((S, L, 3, n)), np.full(S, kernel.EMPTY, np.int64),
                  np.zeros(S, np.int64), np.zeros(S, np.int64), np.zeros(S), np.zeros(S),
                  np.zeros((S, P, 3)), np.zeros((S, P, 3)), np.zeros((S, P, 3)),
-                 np.zeros((S, P, 3)), np.zeros((S, P)), np.zeros((S, P, K), np.int64),
-                 np.zeros((S, P), np.bool_))
+                 np.full((S, P), -1, np.int64))
         history = (np.zeros((S, H), np.int64), np.zeros((S, H), np.int64), np.zeros((S, H)),
                    np.zeros((S, H)),
                    np.zeros((S, H), np.int64), np.zeros((S, H, n)), np.zeros((S, H, n_ipfo)),
@@ -210,23 +209,22 @@ def fit_parameters(config: FitConfig) -> tuple:
 def score_fit(gripper: Gripper, obj: ObjectSurface, T: np.ndarray, q: np.ndarray, config: FitConfig,
               status: FitStatus, history: tuple[IterationRecord, ...], elapsed: float) -> FitResult:
     """The :class:`FitResult` of a final state ``(T, q)``: all contact points matched afresh."""
-    P = gripper.n_points
     links = gripper.link_kinematics(q)
-    cache = (np.zeros((P, 3)), np.zeros(P), np.zeros((P, kernel.CANDIDATES), np.int64),
-             np.zeros(P, np.bool_))
+    last = np.full(gripper.n_points, -1, np.int64)
     T, q = np.array(T, dtype=float), np.array(q, dtype=float)
     return _scored(gripper, obj, config, gripper_arrays(gripper, 1), T, q, links.rotations,
-                   links.positions, cache, status, history, elapsed)
+                   links.positions, last, status, history, elapsed)
 
 
 def _scored(gripper: Gripper, obj: ObjectSurface, config: FitConfig, grip: tuple, T: np.ndarray,
-            q: np.ndarray, R: np.ndarray, p: np.ndarray, cache: tuple, status: FitStatus,
+            q: np.ndarray, R: np.ndarray, p: np.ndarray, last: np.ndarray, status: FitStatus,
             history: tuple[IterationRecord, ...], elapsed: float) -> FitResult:
     """:func:`isf.lockstep_kernel.score_state` of a state as a :class:`FitResult` (``grip``:
-    :func:`gripper_arrays`; ``cache``: the state's nearest-point cache)."""
+    :func:`gripper_arrays`; ``last``: each contact point's last nearest object point, (P,),
+    -1 for none)."""
     mean_distance, misalignment, error, rows, targets, points, touching = kernel.score_state(
         T, R, p, grip, (obj.points, obj.normals, obj.search.tree), fit_parameters(config),
-        float(config.normal_weight), *cache)
+        float(config.normal_weight), last)
     surface_contact = {s.name: float(touching[gripper.point_surface == k].mean())
                        for k, s in enumerate(gripper.surfaces)}
     return FitResult(

@@ -7,7 +7,7 @@ until one of them finishes, so Python sees a fit only when it starts and when it
 round, for each running fit:
 
 1. its level's contact points at its pose (kept from the previous round), matched to their
-   nearest object points through its nearest-point cache (below), filtered (outliers per
+   nearest object points (below), filtered (outliers per
    contact surface or per fit, normal compatibility, duplicate targets), exactly as
    :func:`isf.correspondence.match_many` filters;
 2. IPFO on the moments of the pairs (:func:`isf.ipfo_kernel.alternate`, all fits together);
@@ -17,17 +17,13 @@ round, for each running fit:
 3. the new pose's level points, the displacement ratio ``eta``, the history record, and the
    stop rule (next level, or the end of the fit).
 
-The nearest-point cache
------------------------
-Each fit keeps, per contact point, the :data:`CANDIDATES` nearest object points of the
-position ``x0`` where it last searched the tree, and ``r`` the distance from ``x0`` to the
-last of them. Every other object point lies at least ``r`` from ``x0``, hence at least
-``r - |x - x0|`` from the point's new position ``x``. So when the nearest candidate lies
-closer than that, it is the nearest object point (and all points equally near are
-candidates, so ties resolve as in the tree, to the lowest index); otherwise the tree is
-searched again and the cache refilled. The answers are those of
-:class:`isf.nearest.NearestPoints`; most ISF iterations move a contact point far less than
-the gap between its candidates and the rest, so most queries end in the cache.
+Nearest points
+--------------
+Each fit keeps, per contact point, the object point found nearest in its last match. The next
+match searches from there (:func:`isf.nearest.nearest_point`): on the object's Delaunay graph
+(:mod:`isf.neighbour_graph`) a walk of a step or two, since an ISF iteration moves a contact
+point by about one object point spacing or less; without a graph the k-d tree, bounded by
+that point's distance. The answers are those of :class:`isf.nearest.NearestPoints`.
 """
 
 from __future__ import annotations
@@ -35,13 +31,12 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from . import kdtree
 from .correspondence import keep_inliers, reject_duplicate_targets
 from .ipfo_kernel import DONE, resume
 from .moment_kernels import fit_errors, group_moments, link_poses, place, points_in_object
-from .nearest import search_scratch
+from .nearest import nearest_point, search_scratch
 
-__all__ = ["CANDIDATES", "CONVERGED", "EMPTY", "FINISHED", "IDLE", "LOST_CONTACT", "MAX_ITERATIONS",
+__all__ = ["CONVERGED", "EMPTY", "FINISHED", "IDLE", "LOST_CONTACT", "MAX_ITERATIONS",
            "PENDING", "ROUNDS", "RUNNING", "enter_level", "finish_round", "plane_distance", "run",
            "score_state"]
 
@@ -50,51 +45,6 @@ EMPTY, RUNNING, CONVERGED, MAX_ITERATIONS, LOST_CONTACT = -1, 0, 1, 2, 3
 
 IDLE, FINISHED, PENDING, ROUNDS = 0, 1, 2, 3
 """Why :func:`run` returned (no running fit, a fit finished, IPFO needs Python, the round limit)."""
-
-CANDIDATES = 6
-"""Object points a contact point's nearest-point cache holds."""
-
-_CACHE_SLACK = 1e-9
-"""The cache answers only when its nearest candidate beats the bound by this fraction of it
-(far beyond the rounding of the distances)."""
-
-
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def cached_nearest(x, y, z, g, x0, radius, candidates, valid, obj_points):
-    """The nearest object point to contact point ``g`` at ``(x, y, z)`` from its cache ``x0``
-    (P, 3), ``radius`` (P,), ``candidates`` (P, K), ``valid`` (P,) (see the module docstring):
-    ``(index, squared distance, True)``, or ``(-1, inf, False)`` when the cache cannot tell."""
-    if not valid[g]:
-        return -1, np.inf, False
-    n = len(obj_points)
-    near, near_d2 = -1, np.inf
-    for c in range(candidates.shape[1]):
-        p = candidates[g, c]
-        if p >= n:  # padding: fewer points than candidates
-            break
-        d2 = (obj_points[p, 0] - x) ** 2 + (obj_points[p, 1] - y) ** 2 + (obj_points[p, 2] - z) ** 2
-        if d2 < near_d2 or (d2 == near_d2 and p < near):
-            near, near_d2 = p, d2
-    moved = np.sqrt((x - x0[g, 0]) ** 2 + (y - x0[g, 1]) ** 2 + (z - x0[g, 2]) ** 2)
-    if np.sqrt(near_d2) + moved < radius[g] * (1.0 - _CACHE_SLACK):
-        return near, near_d2, True
-    return -1, np.inf, False
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def refill(x, y, z, g, x0, radius, candidates, valid, tree, scratch, best_d2, best):
-    """Search the tree for the :data:`CANDIDATES` nearest object points of contact point ``g``
-    at ``(x, y, z)``, store them in its cache, and return the nearest: ``(index, squared
-    distance)``. ``best_d2``, ``best``: scratch (K,)."""
-    kdtree.k_nearest(x, y, z, best_d2, best, tree[0], tree[1], tree[2], tree[3], tree[4], tree[5],
-                     tree[6], tree[7], scratch[0], scratch[1], scratch[2])
-    x0[g, 0], x0[g, 1], x0[g, 2] = x, y, z
-    radius[g] = np.sqrt(best_d2[-1])
-    for c in range(len(best)):
-        candidates[g, c] = best[c]
-    valid[g] = True
-    return best[0], best_d2[0]
-
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _dot(a, i, b, j):
@@ -111,22 +61,20 @@ def plane_distance(points, i, targets, normals, j):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _match(points, normals, rows, count, grip, obj, fit_params, x0, radius, candidates, valid,
-           dist, target, keep, work):
+def _match(points, normals, rows, count, grip, obj, fit_params, last, dist, target, keep, work):
     """Match and filter the contact points ``rows[:count]`` (gripper point indices) at object-frame
-    ``points``, ``normals`` (>= count, 3): fills ``dist``, ``target``, ``keep`` (>= count) and
-    returns the number kept. ``work``: scratch from ``_work``."""
+    ``points``, ``normals`` (>= count, 3), each searched from its ``last`` answer (P,; -1: none,
+    updated): fills ``dist``, ``target``, ``keep`` (>= count) and returns the number kept.
+    ``work``: scratch from ``_work``."""
     point_surface = grip[3]
     obj_points, obj_normals, tree = obj
     per_surface, reject_duplicates, check_normals, cos_limit = fit_params[5:9]
-    scratch, best_d2, best, ranked, best_row, stamp, compatible = work
+    scratch, ranked, best_row, stamp, compatible = work
     for i in range(count):
-        x, y, z = points[i, 0], points[i, 1], points[i, 2]
         g = rows[i]
-        target[i], d2, hit = cached_nearest(x, y, z, g, x0, radius, candidates, valid, obj_points)
-        if not hit:
-            target[i], d2 = refill(x, y, z, g, x0, radius, candidates, valid, tree, scratch,
-                                   best_d2, best)
+        target[i], d2 = nearest_point(points[i, 0], points[i, 1], points[i, 2], last[g], obj_points,
+                                      tree, scratch, np.inf)
+        last[g] = target[i]
         dist[i] = np.sqrt(d2)
         if check_normals:
             compatible[i] = _dot(normals, i, obj_normals, target[i]) <= cos_limit
@@ -153,12 +101,12 @@ def _match(points, normals, rows, count, grip, obj, fit_params, x0, radius, cand
 
 @njit(cache=True, nogil=True)
 def _work(n_points, n_object):
-    """Scratch of ``_match`` for up to ``n_points`` contact points: the tree's stack, the
-    cache's refill lists, a sort buffer, the duplicate filter's per-object-point arrays
-    (``stamp`` with one extra entry that counts tags) and a compatibility mask."""
+    """Scratch of ``_match`` for up to ``n_points`` contact points: the tree's stack, a sort
+    buffer, the duplicate filter's per-object-point arrays (``stamp`` with one extra entry that
+    counts tags) and a compatibility mask."""
     stamp = np.full(n_object + 1, -1, np.int64)
     stamp[-1] = 0
-    return (search_scratch(), np.empty(CANDIDATES), np.empty(CANDIDATES, np.int64),
+    return (search_scratch(),
             np.empty(n_points), np.empty(n_object, np.int64), stamp, np.empty(n_points, np.bool_))
 
 
@@ -214,7 +162,7 @@ def _prepare(slots, grip, obj, fit_params, ipfo_params, work, n_links):
     fewer than ``min_pairs`` pairs ends as LOST_CONTACT."""
     T, q, R, p, Jv, Jw, status, level_of = slots[:8]
     current, current_normals = slots[11:13]
-    x0, radius, candidates, valid = slots[14:18]
+    last = slots[14]
     points_link, normals_link, point_link = grip[0], grip[1], grip[2]
     obj_points, obj_normals = obj[0], obj[1]
     n_points = len(point_link)
@@ -230,9 +178,8 @@ def _prepare(slots, grip, obj, fit_params, ipfo_params, work, n_links):
         if status[b] != RUNNING:
             continue
         rows, count = grip[4][level_of[b]], grip[5][level_of[b]]
-        kept = _match(current[b], current_normals[b], rows, count, grip, obj, fit_params, x0[b],
-                      radius[b],
-                      candidates[b], valid[b], dist, target, keep, work)
+        kept = _match(current[b], current_normals[b], rows, count, grip, obj, fit_params, last[b],
+                      dist, target, keep, work)
         if kept < fit_params[9]:
             status[b] = LOST_CONTACT
             continue
@@ -328,12 +275,12 @@ def run(slots, history, grip, obj, fit_params, ipfo_params, max_rounds):
     """Rounds of every running slot until one ends, IPFO needs Python, or ``max_rounds`` passed.
 
     Args:
-        slots: per slot (S slots, P gripper points, K = :data:`CANDIDATES`): ``T`` (S, 4, 4),
+        slots: per slot (S slots, P gripper points): ``T`` (S, 4, 4),
             ``q`` (S, n), contact-link ``R`` (S, L, 3, 3), ``p`` (S, L, 3), ``Jv``, ``Jw``
             (S, L, 3, n), ``status`` (S,), ``level``, ``iteration`` (S,), ``displacement``,
             ``eta`` (S,), the level's ``current`` points and normals and ``start`` points
-            (S, P, 3), and the nearest-point cache ``x0`` (S, P, 3), ``radius`` (S, P),
-            ``candidates`` (S, P, K), ``valid`` (S, P). Updated in place.
+            (S, P, 3), and each point's ``last`` nearest object point (S, P; -1: none).
+            Updated in place.
         history: per slot and ISF iteration (H at most): level, iteration (S, H), mean
             distance, error (S, H), pairs (S, H), ``q`` (S, H, n), IPFO errors (S, H, I) and
             their count (S, H), and each slot's record count (S,).
@@ -380,10 +327,10 @@ def run(slots, history, grip, obj, fit_params, ipfo_params, max_rounds):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def score_state(T, R, p, grip, obj, fit_params, alpha, x0, radius, candidates, valid):
+def score_state(T, R, p, grip, obj, fit_params, alpha, last):
     """The final scores of a fit at palm pose ``T`` (4, 4) and contact-link poses ``R``
-    (L, 3, 3), ``p`` (L, 3): every contact point matched afresh (through the cache ``x0``,
-    ``radius``, ``candidates``, ``valid`` of its P points) and filtered.
+    (L, 3, 3), ``p`` (L, 3): every contact point matched afresh (searched from its ``last``
+    nearest object point, (P,), -1: none) and filtered.
 
     Returns:
         ``(mean_distance, misalignment, error, rows, targets, points, touching)``: the mean
@@ -399,9 +346,8 @@ def score_state(T, R, p, grip, obj, fit_params, alpha, x0, radius, candidates, v
     dist, target = np.empty(n_points), np.empty(n_points, np.int64)
     keep = np.empty(n_points, np.bool_)
     work = _work(n_points, len(obj[0]))
-    kept = _match(points, normals, rows, n_points, grip, obj, fit_params, x0, radius, candidates,
-                  valid,
-                  dist, target, keep, work)
+    kept = _match(points, normals, rows, n_points, grip, obj, fit_params, last, dist, target, keep,
+                  work)
     obj_points, obj_normals = obj[0], obj[1]
     kept_rows, kept_targets = np.empty(kept, np.int64), np.empty(kept, np.int64)
     distance = misalignment = error = 0.0

@@ -4,10 +4,13 @@ ISF asks one question of the object again and again (the nearest surface point o
 contact point, about a million times per plan), on a point set that never changes.
 :class:`NearestPoints` answers it with a k-d tree (:mod:`isf.kdtree`) built once and searched
 in compiled code (one call per batch of queries, no Python per query). A search can start from
-a guess (the point found for the same query in the previous ISF iteration): its distance
-bounds the search from the start, so the tree prunes most branches at once. The answer is
-exact either way: the nearest distance and, among equally near points, the lowest index.
-:meth:`NearestPoints.query_k` answers the k nearest points the same way (the collision checks
+a guess (the point found for the same query in the previous ISF iteration). Built with
+``graph=True``, the search also holds the points' Delaunay graph
+(:mod:`isf.neighbour_graph`), and a search with a guess walks the graph from it instead of
+descending the tree: a query near its guess costs a step or two. The answer is exact either
+way (up to the joggle of the graph's points, see :mod:`isf.neighbour_graph`): the nearest
+distance and, among equally near points, the lowest index.
+:meth:`NearestPoints.query_k` answers the k nearest points with the tree (the collision checks
 and the collision repair ask for the tangent planes of the 6 nearest).
 
 Compiled callers search per query with :func:`nearest_point` (or
@@ -20,6 +23,7 @@ import numpy as np
 from numba import njit
 
 from . import kdtree
+from .neighbour_graph import NO_GRAPH, neighbour_graph, walk
 
 __all__ = ["NearestPoints", "nearest_point", "search_scratch"]
 
@@ -37,13 +41,19 @@ def nearest_point(x, y, z, guess, points, tree, scratch, limit):
     distance)``, exact; ``(-1, limit)`` when there is none (``limit = inf``: the nearest point).
 
     Args:
-        guess: a point index to bound the search with, or -1 (a guess not closer than the
-            limit is ignored).
+        guess: a point index to start from, or -1: the graph is walked from it when there is
+            one (:func:`isf.neighbour_graph.walk`; the tree settles a walk that meets a tie),
+            else it bounds the tree's search (a guess not closer than the limit is ignored).
         points, tree: :attr:`NearestPoints.points` and :attr:`NearestPoints.tree`.
         scratch: :func:`search_scratch`.
         limit: squared search radius, m^2.
     """
     best, best_d2 = -1, limit
+    if guess >= 0 and len(tree[8]):
+        found, found_d2, tied = walk(x, y, z, guess, points, tree[8], tree[9])
+        if not tied:
+            return (found, found_d2) if found_d2 < limit else (-1, limit)
+        guess = found  # a tie: the tree settles it, bounded by the walk's answer
     if guess >= 0:
         d2 = (points[guess, 0] - x) ** 2 + (points[guess, 1] - y) ** 2 + (points[guess, 2] - z) ** 2
         if d2 < limit:
@@ -95,9 +105,12 @@ class NearestPoints:
         leaf_size: points per leaf of the k-d tree at most (:data:`isf.kdtree.LEAF_SIZE` by
             default). It changes the speed, never an answer: larger leaves suit queries that
             lie farther from the points than their spacing (on a dense surface sample).
+        graph: also build the points' Delaunay graph (:mod:`isf.neighbour_graph`; 25-65 us
+            per point), so that searches from a guess walk it. It changes the speed, not the
+            answers (but see the joggle in :mod:`isf.neighbour_graph`).
     """
 
-    def __init__(self, points: np.ndarray, leaf_size: int = kdtree.LEAF_SIZE):
+    def __init__(self, points: np.ndarray, leaf_size: int = kdtree.LEAF_SIZE, graph: bool = False):
         self.points = np.ascontiguousarray(points, dtype=np.float64)
         """The points, (N, 3)."""
         if self.points.ndim != 2 or self.points.shape[1] != 3 or not len(self.points):
@@ -105,9 +118,12 @@ class NearestPoints:
         if isinstance(leaf_size, bool) or not isinstance(leaf_size, (int, np.integer)) or leaf_size < 1:
             raise ValueError(f"leaf_size must be a positive integer, got {leaf_size!r}")
         order, *nodes = kdtree.build(self.points, int(leaf_size))
-        self.tree = (self.points[order], order, *nodes)
-        """The tree's arrays (the points in tree order, leaves contiguous, then
-        :func:`isf.kdtree.build`'s), for :func:`nearest_point` and :func:`isf.kdtree.k_nearest`."""
+        indptr, indices = neighbour_graph(self.points) if graph else NO_GRAPH
+        self.tree = (self.points[order], order, *nodes, indptr, indices)
+        """The arrays of the search, for :func:`nearest_point` and
+        :func:`isf.kdtree.k_nearest`. First the tree's (the points in tree order, leaves
+        contiguous, then :func:`isf.kdtree.build`'s), then the graph's ``indptr`` and
+        ``indices`` (empty without a graph)."""
 
     def query(self, queries: np.ndarray, guess: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Nearest point of each query point.

@@ -35,6 +35,7 @@ class ObjectSurface:
     mesh_vertices: np.ndarray | None = None
     mesh_faces: np.ndarray | None = None
     _search: NearestPoints | None = field(init=False, repr=False, default=None)
+    _thinned: dict = field(init=False, repr=False, default_factory=dict)  # see working_surface
 
     def __post_init__(self) -> None:
         self.points = np.ascontiguousarray(self.points, dtype=np.float64)
@@ -60,9 +61,10 @@ class ObjectSurface:
 
     @property
     def search(self) -> NearestPoints:
-        """The exact nearest-point search on :attr:`points` (built on first use)."""
+        """The exact nearest-point search on :attr:`points`, with their Delaunay graph (built on
+        first use)."""
         if self._search is None:
-            self._search = NearestPoints(self.points)
+            self._search = NearestPoints(self.points, graph=True)
         return self._search
 
     def nearest(self, query: np.ndarray, guess: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:

@@ -124,7 +124,8 @@ def object_side(obj: ObjectSurface, spacing: float, rng: np.random.Generator) ->
         count = int(np.clip(mesh.area / spacing**2, 1, MAX_OBJECT_SAMPLES))
         points, face = trimesh.sample.sample_surface(mesh, count, seed=seed)
         planes = TangentPlanes(np.concatenate([obj.points, points]),
-                               np.concatenate([obj.normals, mesh.face_normals[face]]), spacing)
+                               np.concatenate([obj.normals, mesh.face_normals[face]]), spacing,
+                               graph=True)
         memo[key] = ObjectSide(planes, PointGrid(planes.points, GRID_CELL), True)
     return memo[key]
 

@@ -96,7 +96,7 @@ def undecided(bound, bound_element, violation, element, n_elements, activation, 
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def sample_rows(world, floor, element, known_violation, known_element, n_elements, activation,
+def sample_rows(world, guess, floor, element, known_violation, known_element, n_elements, activation,
                 max_rows, slack, reach, obj, voxels, planes, resampled):
     """The clearance rows of gripper samples against the object's tangent planes (documented at
     ``isf.clearance.ClearanceRepair._sample_rows``).
@@ -104,6 +104,8 @@ def sample_rows(world, floor, element, known_violation, known_element, n_element
     Args:
         world, floor, element: the samples (M, 3) (object frame), their floors (M,), metres,
             and geometry elements (M,).
+        guess: an object point near each sample to start its search from (M,), -1 for none
+            (e.g. its nearest point one repair step before); it never changes an answer.
         known_violation, known_element: the state's other rows (K,).
         n_elements, activation, max_rows: as for :func:`deepest_rows`.
         slack: rounding allowance of the violation bounds, metres.
@@ -114,7 +116,9 @@ def sample_rows(world, floor, element, known_violation, known_element, n_element
         resampled: the dense planes are not the object's own points.
 
     Returns:
-        (indices (R,) of the samples kept, their plane normals (R, 3), their violations (R,)).
+        (indices (R,) of the samples kept, their plane normals (R, 3), their violations (R,),
+        the nearest object point of every sample (M,), -1 for those not searched: beyond reach
+        and, by the voxels, outside).
     """
     obj_points, obj_normals, obj_tree = obj
     m = len(world)
@@ -128,11 +132,11 @@ def sample_rows(world, floor, element, known_violation, known_element, n_element
             look[i] = not outside[i] or below[i] < reach
     dist, nearest = np.full(m, np.inf), np.full(m, -1, np.int64)
     rows = np.flatnonzero(look)
-    d, n = _query(world[rows], np.full(len(rows), -1, np.int64), reach * reach, obj_points, obj_tree)
+    d, n = _query(world[rows], guess[rows], reach * reach, obj_points, obj_tree)
     dist[rows], nearest[rows] = d, n
     far = np.flatnonzero((nearest < 0) & ~outside)  # beyond reach, maybe inside
     if len(far):
-        d, n = _query(world[far], np.full(len(far), -1, np.int64), np.inf, obj_points, obj_tree)
+        d, n = _query(world[far], guess[far], np.inf, obj_points, obj_tree)
         dist[far], nearest[far] = d, n
     close = np.empty(m, np.int64)
     lower = np.empty(m)
@@ -177,4 +181,4 @@ def sample_rows(world, floor, element, known_violation, known_element, n_element
             normals[c] = plane_normals[plane[j]]
             exact[c] = True
     keep = np.flatnonzero(exact)
-    return close[keep], normals[keep], violation[keep]
+    return close[keep], normals[keep], violation[keep], nearest

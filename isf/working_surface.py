@@ -69,10 +69,18 @@ def working_surface(obj: ObjectSurface, spacing: float) -> ObjectSurface:
     """``obj`` thinned to about ``spacing`` metres between points (voxels of that edge), or
     ``obj`` itself when its own spacing is at least that (or ``spacing`` is 0).
 
-    The result keeps the object's name and mesh; its points are a subset of ``obj.points``.
+    The result keeps the object's name and mesh; its points are a subset of ``obj.points``. It
+    is kept with ``obj``, so planning on the same object again reuses it and its search.
     """
     if not spacing > 0.0 or obj.spacing >= spacing:
         return obj
+    if spacing not in obj._thinned:
+        obj._thinned[spacing] = _thinned(obj, spacing)
+    return obj._thinned[spacing]
+
+
+def _thinned(obj: ObjectSurface, spacing: float) -> ObjectSurface:
+    """:func:`working_surface`, computed."""
     labels, n_voxels = voxel_labels(obj.points, spacing)
     if n_voxels >= obj.n_points:
         return obj

@@ -1,52 +1,17 @@
-"""The compiled lockstep engine: its nearest-point cache, one round against the Python pieces,
-and its pauses for Python."""
+"""The compiled lockstep engine: one round against the Python pieces, and its pauses for Python
+(its searches from each contact point's last answer: ``tests/test_nearest.py``)."""
 
 import numpy as np
 import pytest
+from _builders import random_rotation
 
 import isf
-from _builders import random_rotation
-from isf import lockstep_kernel as kernel
 from isf.config import FitConfig
 from isf.correspondence import match_many
 from isf.finger_step import FingerStepQP
 from isf.ipfo import PairBatch, ipfo
-from isf.nearest import NearestPoints, search_scratch
 from isf.se3 import make_transform
 from isf.segments import Segments
-
-
-def _brute_force(points, query):
-    d2 = ((points - query) ** 2).sum(axis=1)
-    return int(d2.argmin()), float(d2.min())  # argmin: the lowest index among ties
-
-
-@pytest.mark.parametrize("n_points", [3, 400])
-def test_the_nearest_point_cache_answers_what_a_full_search_answers(n_points):
-    """Random walks of contact points (small steps and jumps) over a noisy surface with
-    duplicated points: every answer, from the cache or from a refill, is the brute-force one."""
-    rng = np.random.default_rng(n_points)
-    xy = rng.uniform(-0.01, 0.01, (n_points, 2))
-    points = np.c_[xy, 0.0005 * rng.normal(size=n_points)]
-    points[: n_points // 4] = points[n_points // 4: 2 * (n_points // 4)]  # exact duplicates
-    tree = NearestPoints(points).tree
-    n_walkers, k = 20, kernel.CANDIDATES
-    x0, radius = np.zeros((n_walkers, 3)), np.zeros(n_walkers)
-    candidates, valid = np.zeros((n_walkers, k), np.int64), np.zeros(n_walkers, np.bool_)
-    best_d2, best, scratch = np.empty(k), np.empty(k, np.int64), search_scratch()
-    position = np.c_[rng.uniform(-0.01, 0.01, (n_walkers, 2)), np.full(n_walkers, 0.002)]
-    hits = 0
-    for step in range(300):
-        jump = rng.random(n_walkers) < 0.05
-        position += np.where(jump[:, None], 0.004, 0.00005) * rng.normal(size=position.shape)
-        for g, (x, y, z) in enumerate(position):
-            cache = (x0, radius, candidates, valid)
-            index, d2, hit = kernel.cached_nearest(x, y, z, g, *cache, points)
-            if not hit:
-                index, d2 = kernel.refill(x, y, z, g, *cache, tree, scratch, best_d2, best)
-            hits += hit
-            assert (index, d2) == _brute_force(points, position[g]), (step, g)
-    assert hits > 0.5 * 300 * n_walkers  # the cache did answer most of them
 
 
 @pytest.fixture(scope="module")

@@ -1,10 +1,14 @@
-"""The compiled k-d tree answers exactly what a brute-force search and scipy's cKDTree answer."""
+"""The compiled k-d tree, and the walks on the Delaunay graph, answer exactly what a brute-force
+search and scipy's cKDTree answer."""
 
 import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from isf.nearest import NearestPoints
+from isf.nearest import NearestPoints, nearest_point, search_scratch
+from isf.neighbour_graph import neighbour_graph
+
+GRAPH = pytest.mark.parametrize("graph", [False, True], ids=["tree", "graph"])
 
 
 def _brute_force(points, queries):
@@ -12,36 +16,39 @@ def _brute_force(points, queries):
     return np.sqrt(d2.min(axis=1)), d2.argmin(axis=1)  # argmin: the lowest index among ties
 
 
+@GRAPH
 @pytest.mark.parametrize("leaf_size", [1, 8, 32])
 @pytest.mark.parametrize("n_points", [1, 2, 7, 9, 100, 3000])
-def test_matches_brute_force_and_ckdtree(n_points, leaf_size):
+def test_matches_brute_force_and_ckdtree(n_points, leaf_size, graph):
     rng = np.random.default_rng(n_points)
     points = rng.normal(size=(n_points, 3)) * [1.0, 0.3, 0.01]  # flat, anisotropic cloud
     queries = np.concatenate([rng.normal(size=(300, 3)), 50.0 * rng.normal(size=(20, 3))])
-    distance, index = NearestPoints(points, leaf_size=leaf_size).query(queries)
+    distance, index = NearestPoints(points, leaf_size=leaf_size, graph=graph).query(queries)
     expected_distance, expected_index = _brute_force(points, queries)
     np.testing.assert_allclose(distance, expected_distance, rtol=1e-12, atol=1e-15)
     np.testing.assert_array_equal(index, expected_index)
     np.testing.assert_array_equal(distance, cKDTree(points).query(queries)[0])
 
 
-def test_ties_give_the_lowest_index():
+@GRAPH
+def test_ties_give_the_lowest_index(graph):
     rng = np.random.default_rng(3)
     grid = np.stack(np.meshgrid(*[np.arange(6.0)] * 3, indexing="ij"), axis=-1).reshape(-1, 3)
     points = np.concatenate([grid, grid])  # every point twice
     points = points[rng.permutation(len(points))]
     queries = grid[rng.integers(len(grid), size=200)] + rng.choice([0.0, 0.5], size=(200, 3))
-    distance, index = NearestPoints(points).query(queries)
+    distance, index = NearestPoints(points, graph=graph).query(queries)
     expected_distance, expected_index = _brute_force(points, queries)
     np.testing.assert_array_equal(distance, expected_distance)
     np.testing.assert_array_equal(index, expected_index)
 
 
-def test_guesses_never_change_the_answer():
+@GRAPH
+def test_guesses_never_change_the_answer(graph):
     rng = np.random.default_rng(5)
     points = rng.uniform(size=(2000, 3))
     queries = rng.uniform(-0.2, 1.2, size=(500, 3))
-    search = NearestPoints(points)
+    search = NearestPoints(points, graph=graph)
     expected = search.query(queries)
     for guess in (rng.integers(len(points), size=500), expected[1], np.full(500, -1)):
         distance, index = search.query(queries, guess)
@@ -138,14 +145,15 @@ def test_k_nearest_of_no_queries_and_bad_k():
             search.query_k(np.zeros((1, 3)), k)
 
 
+@GRAPH
 @pytest.mark.parametrize("radius", [0.05, 0.3, 2.0])
-def test_query_within_a_radius_matches_brute_force(radius):
+def test_query_within_a_radius_matches_brute_force(radius, graph):
     rng = np.random.default_rng(7)
     points = rng.normal(size=(500, 3)) * [1.0, 0.5, 0.05]
     points = np.concatenate([points, points[:50]])  # ties: the lowest index must win
     walk = np.cumsum(rng.normal(scale=0.05, size=(200, 3)), axis=0)  # runs of neighbours
     queries = np.concatenate([walk, rng.normal(size=(200, 3)) * 3.0, points[:20]])
-    distance, index = NearestPoints(points).query_within(queries, radius)
+    distance, index = NearestPoints(points, graph=graph).query_within(queries, radius)
     expected_distance, expected_index = _brute_force(points, queries)
     inside = expected_distance < radius
     assert inside.any() and not inside.all()
@@ -164,3 +172,69 @@ def test_query_within_refuses_a_bad_radius():
 def test_refuses_a_bad_leaf_size(leaf_size):
     with pytest.raises(ValueError, match="leaf_size"):
         NearestPoints(np.zeros((3, 3)), leaf_size=leaf_size)
+
+
+def _surface_cases(rng):
+    """Surface-like point sets (N, 3): a noisy patch with exact duplicates, a cylinder on a
+    regular grid and a cube lattice (many points equally near a query), and a flat patch (no
+    graph)."""
+    xy = rng.uniform(-0.01, 0.01, (400, 2))
+    patch = np.c_[xy, 0.0005 * rng.normal(size=400)]
+    patch[:100] = patch[100:200]  # exact duplicates
+    angle, height = np.meshgrid(np.linspace(0.0, 2.0 * np.pi, 40, endpoint=False),
+                                np.linspace(0.0, 0.05, 15))
+    cylinder = np.c_[0.02 * np.cos(angle.ravel()), 0.02 * np.sin(angle.ravel()), height.ravel()]
+    lattice = 0.003 * np.stack(np.meshgrid(*[np.arange(8.0)] * 3, indexing="ij"), -1).reshape(-1, 3)
+    flat = np.c_[rng.uniform(-0.01, 0.01, (300, 2)), np.zeros(300)]
+    return {"patch": patch, "cylinder": cylinder, "lattice": lattice, "flat": flat}
+
+
+@pytest.mark.parametrize("case", ["patch", "cylinder", "lattice", "flat"])
+def test_searches_from_the_last_answer_give_what_a_full_search_gives(case):
+    """Random walks of query points (small steps and jumps, as contact points move in ISF), each
+    searched from its previous answer: every answer is the brute-force one."""
+    rng = np.random.default_rng(len(case))
+    points = _surface_cases(rng)[case]
+    search = NearestPoints(points, graph=True)
+    assert bool(len(search.tree[8])) == (case != "flat")  # a flat set has no graph: the tree
+    scratch = search_scratch()
+    n_walkers = 20
+    last = np.full(n_walkers, -1, np.int64)
+    position = points[rng.integers(len(points), size=n_walkers)] + [0.0, 0.0, 0.002]
+    for step in range(200):
+        jump = rng.random(n_walkers) < 0.05
+        position += np.where(jump[:, None], 0.004, 0.0002) * rng.normal(size=position.shape)
+        for g, (x, y, z) in enumerate(position):
+            index, d2 = nearest_point(x, y, z, last[g], points, search.tree, scratch, np.inf)
+            last[g] = index
+            d2_all = ((points - position[g]) ** 2).sum(axis=1)
+            assert (index, d2) == (int(d2_all.argmin()), float(d2_all.min())), (step, g)
+
+
+def test_the_graph_links_each_point_to_its_nearest_and_copies_to_their_first():
+    """Two properties of any Delaunay graph, checked by brute force on the distinct points: each
+    point's nearest other point is its neighbour, and the graph is symmetric; an exact copy of
+    an earlier point lists that point and is no one's neighbour."""
+    rng = np.random.default_rng(4)
+    distinct = rng.normal(size=(300, 3)) * [1.0, 0.4, 0.05]
+    points = np.concatenate([distinct, distinct[:20]])
+    indptr, indices = neighbour_graph(points)
+    assert len(indptr) == len(points) + 1 and np.all(np.diff(indptr) > 0)
+    neighbours = [set(indices[indptr[i]:indptr[i + 1]].tolist()) for i in range(len(points))]
+    d2 = ((distinct[:, None] - distinct[None]) ** 2).sum(axis=2)
+    np.fill_diagonal(d2, np.inf)
+    for i in range(len(distinct)):
+        assert int(d2[i].argmin()) in neighbours[i]
+        assert all(i in neighbours[j] for j in neighbours[i])
+        assert not neighbours[i] & set(range(300, 320))
+    for copy in range(300, 320):
+        assert copy - 300 in neighbours[copy]
+
+
+def test_no_graph_for_too_few_or_flat_points():
+    rng = np.random.default_rng(0)
+    assert len(neighbour_graph(np.eye(3))[0]) == 0
+    assert len(neighbour_graph(np.concatenate([np.eye(3)] * 4))[0]) == 0  # 3 distinct points
+    flat = np.c_[rng.normal(size=(50, 2)), np.zeros(50)] @ np.linalg.qr(rng.normal(size=(3, 3)))[0]
+    assert len(neighbour_graph(flat)[0]) == 0  # a tilted plane
+    assert len(neighbour_graph(flat + 1e-3 * rng.normal(size=flat.shape))[0]) == len(flat) + 1

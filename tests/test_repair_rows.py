@@ -239,6 +239,16 @@ def test_only_samples_near_or_inside_the_object_get_rows(hand_on_cylinder, keep_
     assert dist.min() > reach  # all of them beyond reach of every object point
     floor = np.full(len(world), cfg.margin)
     element = np.zeros(len(world), dtype=np.int64)
-    kept, normals, violation = repairer._sample_rows(world, floor, element, _NO_ROWS)
+    no_guess = np.full(len(world), -1, dtype=np.int64)
+    kept, normals, violation, nearest = repairer._sample_rows(world, no_guess, floor, element,
+                                                              _NO_ROWS)
     assert set(kept.tolist()) <= set(range(20))  # no far-outside sample
     assert len(kept) >= 1 and np.all(violation > reach)  # the deepest inside ones, violated
+    np.testing.assert_array_equal(nearest[:20], obj.nearest(world[:20])[1])  # inside: searched
+    searched = nearest[20:] >= 0  # beyond reach: only where the voxels cannot tell outside
+    assert not searched.any() if keep_mesh else searched.all()
+    np.testing.assert_array_equal(nearest[20:][searched], obj.nearest(world[20:][searched])[1])
+    guess = rng.integers(len(obj.points), size=len(world))  # guesses change no answer
+    again = repairer._sample_rows(world, guess, floor, element, _NO_ROWS)
+    for a, b in zip(again, (kept, normals, violation, nearest)):
+        np.testing.assert_array_equal(a, b)
