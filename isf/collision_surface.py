@@ -62,15 +62,20 @@ class TangentPlanes:
 
     ``graph``: the search also walks the points' Delaunay graph from a guess
     (:class:`isf.nearest.NearestPoints`), worth its set-up where many searches start near
-    their answer.
+    their answer. ``search``: an existing search on the same points to use instead of
+    building one (e.g. the object's own, :attr:`isf.ObjectSurface.search`).
     """
 
-    def __init__(self, points: np.ndarray, normals: np.ndarray, spacing: float, graph: bool = False):
+    def __init__(self, points: np.ndarray, normals: np.ndarray, spacing: float, graph: bool = False,
+                 search: NearestPoints | None = None):
         self.points = np.ascontiguousarray(points, dtype=float)
         self.normals = np.ascontiguousarray(normals, dtype=float)
         self.spacing = float(spacing)
         """Typical distance between neighbouring points, metres."""
-        self.tree = NearestPoints(self.points, leaf_size=TREE_LEAF_SIZE, graph=graph)
+        if search is not None and not np.array_equal(search.points, self.points):
+            raise ValueError("search must be built on the same points")
+        self.tree = NearestPoints(self.points, leaf_size=TREE_LEAF_SIZE, graph=graph) \
+            if search is None else search
         """Exact nearest-neighbour search on ``points``."""
 
     def evaluate(self, query: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

@@ -112,8 +112,8 @@ def object_side(obj: ObjectSurface, spacing: float, rng: np.random.Generator) ->
     metres is resampled that densely (its own points are kept too), with a seed drawn from
     ``rng``; a point cloud or an open mesh keeps its own points."""
     mesh = None if spacing >= obj.spacing else closed_mesh(obj)
-    if mesh is None:
-        planes = TangentPlanes(obj.points, obj.normals, obj.spacing)
+    if mesh is None:  # the object's own points, and its search (with their graph)
+        planes = TangentPlanes(obj.points, obj.normals, obj.spacing, search=obj.search)
         return ObjectSide(planes, PointGrid(planes.points, GRID_CELL), False)
     seed = int(rng.integers(2**31))
     digest = hashlib.blake2b(np.ascontiguousarray(obj.points).tobytes()
