@@ -1,15 +1,16 @@
 """Where the time of an ISF round goes, in the lockstep engine.
 
 A round (``isf.lockstep_kernel.run``) is one ISF iteration of every running fit in three steps:
-*match* (each contact point's nearest object point through the nearest-point cache, a k-d tree
-search of the 6 nearest when the cache cannot tell; the outlier, normal and duplicate filters;
-the pairs' moments), *IPFO* (palm and finger steps on the moments) and *finish* (new contact
-points, the stop rule). This script runs the engine's rounds itself, step by step, on the fits
-of ``bench_iteration.py`` (32 uniform-sampler starts, seed 0, on the paper gripper and the
-~2000-point bunny) and reports per fit-iteration: the time of each step, the cache's hit rate
-per pyramid level, how many tree searches (refills) a fit-iteration makes, and what a refill
-costs, measured in the same run as the extra time of the same rounds with every cache
-emptied before each round (the answers, hence the rounds, are the same either way).
+*match* (each contact point's nearest object point, searched from its last answer by a walk on
+the object's Delaunay graph, ``isf.neighbour_graph``; the outlier, normal and duplicate
+filters; the pairs' moments), *IPFO* (palm and finger steps on the moments) and *finish* (new
+contact points, the stop rule). This script runs the engine's rounds itself, step by step, on
+the fits of ``bench_iteration.py`` (32 uniform-sampler starts, seed 0, on the paper gripper and
+the ~2000-point bunny) and reports per fit-iteration: the time of each step, per pyramid level
+how often a contact point's last answer is still its nearest point, and what the walks save,
+measured in the same run as the extra time of the same rounds with every last answer
+forgotten before each round (every query then searches the k-d tree from its root; the
+answers, hence the rounds, are the same either way).
 
 Run from the repository root:  python bench/bench_rounds.py [--quick] [--repeats 5]
 """
@@ -30,30 +31,33 @@ from isf import lockstep_kernel as kernel  # noqa: E402
 from isf.ipfo import answer_requests  # noqa: E402
 from isf.ipfo_kernel import DONE, resume  # noqa: E402
 from isf.lockstep import LockstepFitter  # noqa: E402
+from isf.nearest import nearest_point, search_scratch  # noqa: E402
 
 FITS = 32
 
 
 @njit(cache=True)
-def _cache_hits(slots, grip, obj_points, hits, queries):
-    """Add, per pyramid level, the running fits' contact points whose cache answers (``hits``)
-    and all of them (``queries``), at the state before a round."""
-    status, level_of, current = slots[6], slots[7], slots[11]
-    x0, radius, candidates, valid = slots[14:18]
+def _unchanged(slots, grip, obj, hits, queries):
+    """Add, per pyramid level, the running fits' contact points whose last answer is still their
+    nearest object point (``hits``) and all of them (``queries``), at the state before a round."""
+    status, level_of, current, last = slots[6], slots[7], slots[11], slots[14]
+    scratch = search_scratch()
     for b in range(len(status)):
         if status[b] != kernel.RUNNING:
             continue
         level = level_of[b]
         rows, count = grip[4][level], grip[5][level]
         for i in range(count):
-            hit = kernel.cached_nearest(current[b, i, 0], current[b, i, 1], current[b, i, 2], rows[i],
-                                        x0[b], radius[b], candidates[b], valid[b], obj_points)[2]
-            hits[level] += hit
+            g = rows[i]
+            found = nearest_point(current[b, i, 0], current[b, i, 1], current[b, i, 2], -1, obj[0],
+                                  obj[2], scratch, np.inf)[0]
+            hits[level] += found == last[b, g]
             queries[level] += 1
 
 
-def run_rounds(gripper, obj, proposals, empty_caches: bool, count_hits: bool) -> dict:
-    """All fits to the end, round by round: seconds per step, fit-iterations, cache counts."""
+def run_rounds(gripper, obj, proposals, forget: bool, count_hits: bool) -> dict:
+    """All fits to the end, round by round: seconds per step, fit-iterations, and the counts of
+    last answers still nearest; ``forget``: every last answer dropped before each round."""
     fitter = LockstepFitter(gripper, obj)
     for i, p in enumerate(proposals):
         fitter.add(i, p.T_object_gripper, p.q)
@@ -67,9 +71,9 @@ def run_rounds(gripper, obj, proposals, empty_caches: bool, count_hits: bool) ->
     fit_iterations = 0
     while np.any(slots[6] == kernel.RUNNING):
         if count_hits:
-            _cache_hits(slots, grip, obj.points, hits, queries)
-        if empty_caches:
-            slots[17][:] = False
+            _unchanged(slots, grip, fitter._obj, hits, queries)
+        if forget:
+            slots[14][:] = -1
         t0 = time.perf_counter()
         pairs, state, moments = kernel._prepare(slots, grip, fitter._obj, fit_params, ipfo_params,
                                                 work, n_links)
@@ -103,37 +107,34 @@ def main() -> None:
     else:
         obj, _ = _common.scaled_benchmark_object("bunny", max_points=MAX_POINTS)
     proposals = starts(gripper, obj, FITS)
-    counted = run_rounds(gripper, obj, proposals, empty_caches=False, count_hits=True)
-    run_rounds(gripper, obj, proposals, empty_caches=True, count_hits=False)  # warm-up
-    kept, emptied = [], []
+    counted = run_rounds(gripper, obj, proposals, forget=False, count_hits=True)
+    run_rounds(gripper, obj, proposals, forget=True, count_hits=False)  # warm-up
+    kept, forgotten = [], []
     for _ in range(args.repeats):  # interleaved, so both see the same machine
-        kept.append(run_rounds(gripper, obj, proposals, empty_caches=False, count_hits=False))
-        emptied.append(run_rounds(gripper, obj, proposals, empty_caches=True, count_hits=False))
+        kept.append(run_rounds(gripper, obj, proposals, forget=False, count_hits=False))
+        forgotten.append(run_rounds(gripper, obj, proposals, forget=True, count_hits=False))
     n = counted["fit_iterations"]
     step = [statistics.median(r["seconds"][k] for r in kept) / n * 1e6 for k in range(3)]
-    match_emptied = statistics.median(r["seconds"][0] for r in emptied) / n * 1e6
+    match_tree = statistics.median(r["seconds"][0] for r in forgotten) / n * 1e6
     hits, queries = counted["hits"], counted["queries"]
-    refills = int(queries.sum() - hits.sum())
-    refill_ns = (match_emptied - step[0]) * n / max(int(hits.sum()), 1) * 1e3
+    saved_ns = (match_tree - step[0]) * n / max(int(queries.sum()), 1) * 1e3
     table = _common.markdown_table(
         ["object", "points", "fit-iterations", "match (us)", "IPFO (us)", "finish (us)",
-         "round (us)", "match with every cache emptied (us)", "refills per fit-iteration",
-         "one refill (ns)", "share of the round in refills"],
+         "round (us)", "match, every query from the tree's root (us)",
+         "queries per fit-iteration", "saved per query by the walk (ns)"],
         [[obj.name, obj.n_points, n, _common.fmt(step[0]), _common.fmt(step[1]),
-          _common.fmt(step[2]), _common.fmt(sum(step)), _common.fmt(match_emptied),
-          _common.fmt(refills / n), _common.fmt(refill_ns),
-          f"{refills / n * refill_ns / 1e3 / sum(step):.0%}"]])
+          _common.fmt(step[2]), _common.fmt(sum(step)), _common.fmt(match_tree),
+          _common.fmt(queries.sum() / n), _common.fmt(saved_ns)]])
     level_table = _common.markdown_table(
-        ["pyramid level", "contact points matched", "cache hit rate", "refills"],
-        [[level, int(queries[level]), f"{hits[level] / max(queries[level], 1):.1%}",
-          int(queries[level] - hits[level])] for level in range(len(queries))])
+        ["pyramid level", "contact points matched", "last answer still the nearest"],
+        [[level, int(queries[level]), f"{hits[level] / max(queries[level], 1):.1%}"]
+         for level in range(len(queries))])
     note = (f"Gripper `{GRIPPER}`, {FITS} fits from uniform-sampler starts (seed 0) run to the end "
             f"in one lockstep batch; medians of {args.repeats} runs, per fit-iteration (wall "
-            "time). A refill's cost: (match with every cache emptied - match) / the cache hits "
-            "that emptying turned into refills.")
+            "time). Saved per query: (match from the tree's root - match) / the queries.")
     _common.finish("bench_rounds: where an ISF round's time goes",
-                   ["### Steps of a round", note, table, "### The nearest-point cache",
-                    level_table], started, header, args.out)
+                   ["### Steps of a round", note, table,
+                    "### Searches from the last answer", level_table], started, header, args.out)
 
 
 if __name__ == "__main__":
