@@ -20,7 +20,9 @@ round, for each running fit:
 Nearest points
 --------------
 Each fit keeps, per contact point, the object point found nearest in its last match. The next
-match searches from there (:func:`isf.nearest.nearest_point`): on the object's Delaunay graph
+match searches from there, or from the answer just found for the contact point before it when
+that one is nearer (after a large step of the palm, neighbouring contact points have moved
+alike) (:func:`isf.nearest.nearest_point`): on the object's Delaunay graph
 (:mod:`isf.neighbour_graph`) a walk of a step or two, since an ISF iteration moves a contact
 point by about one object point spacing or less; without a graph the k-d tree, bounded by
 that point's distance. The answers are those of :class:`isf.nearest.NearestPoints`.
@@ -72,8 +74,16 @@ def _match(points, normals, rows, count, grip, obj, fit_params, last, dist, targ
     scratch, ranked, best_row, stamp, compatible = work
     for i in range(count):
         g = rows[i]
-        target[i], d2 = nearest_point(points[i, 0], points[i, 1], points[i, 2], last[g], obj_points,
-                                      tree, scratch, np.inf)
+        x, y, z = points[i, 0], points[i, 1], points[i, 2]
+        start = last[g]
+        if i > 0 and start >= 0:  # or the previous point's answer, when nearer
+            previous = target[i - 1]
+            if ((obj_points[previous, 0] - x) ** 2 + (obj_points[previous, 1] - y) ** 2
+                    + (obj_points[previous, 2] - z) ** 2
+                    < (obj_points[start, 0] - x) ** 2 + (obj_points[start, 1] - y) ** 2
+                    + (obj_points[start, 2] - z) ** 2):
+                start = previous
+        target[i], d2 = nearest_point(x, y, z, start, obj_points, tree, scratch, np.inf)
         last[g] = target[i]
         dist[i] = np.sqrt(d2)
         if check_normals:
