@@ -81,13 +81,13 @@ def neighbour_graph(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     spread = np.linalg.svd(unique - unique.mean(axis=0), compute_uv=False)
     if not spread[2] > FLAT * spread[0]:  # (nearly) in one plane: the joggle would decide the graph
         return NO_GRAPH
+    kept = np.sort(first)  # the points triangulated: the first copy of each
     try:
-        triangulation = Delaunay(points[np.sort(first)], qhull_options=QHULL_OPTIONS)
+        triangulation = Delaunay(points[kept], qhull_options=QHULL_OPTIONS)
     except (QhullError, ValueError):
         return NO_GRAPH
     if len(triangulation.coplanar):  # a point left out of the triangulation: no walk reaches it
         return NO_GRAPH
-    kept = np.sort(first)
     indptr, indices = triangulation.vertex_neighbor_vertices
     indices = kept[indices]
     if len(kept) == len(points):
