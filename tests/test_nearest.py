@@ -238,3 +238,27 @@ def test_no_graph_for_too_few_or_flat_points():
     flat = np.c_[rng.normal(size=(50, 2)), np.zeros(50)] @ np.linalg.qr(rng.normal(size=(3, 3)))[0]
     assert len(neighbour_graph(flat)[0]) == 0  # a tilted plane
     assert len(neighbour_graph(flat + 1e-3 * rng.normal(size=flat.shape))[0]) == len(flat) + 1
+
+
+def test_plans_are_the_same_with_and_without_the_graph(monkeypatch):
+    """A noisy, partial point cloud planned twice, once with the Delaunay walks and once with the
+    k-d tree alone (no graph for any point set): the same grasps, number for number."""
+    import isf
+    from isf import neighbour_graph
+
+    rng = np.random.default_rng(2)
+    surface = isf.open_object("shape:cylinder")
+    side = surface.points[:, 1] > 0.0  # one side, as a camera sees it
+    cloud = surface.points[side] + rng.normal(scale=0.0005, size=(int(side.sum()), 3))
+    gripper = isf.load_gripper("three-finger")
+
+    def grasps(graph):
+        obj = isf.load_object(cloud)
+        result = isf.plan(gripper, obj, samples=8, seed=1)
+        assert bool(len(obj.search.tree[8])) == graph
+        return [(g.collision_free, g.fit.mean_distance, g.fit.T_object_gripper.tobytes(),
+                 g.fit.q.tobytes()) for g in result.grasps]
+
+    walked = grasps(graph=True)
+    monkeypatch.setattr(neighbour_graph, "MAX_POINTS", 0)
+    assert walked == grasps(graph=False)
