@@ -25,7 +25,7 @@ from numba import njit
 from . import kdtree
 from .neighbour_graph import NO_GRAPH, neighbour_graph, walk
 
-__all__ = ["NearestPoints", "nearest_point", "search_scratch"]
+__all__ = ["NearestPoints", "nearest_point", "search_scratch", "tree_nearest"]
 
 
 @njit(cache=True, nogil=True)
@@ -43,21 +43,28 @@ def nearest_point(x, y, z, guess, points, tree, scratch, limit):
     Args:
         guess: a point index to start from, or -1: the graph is walked from it when there is
             one (:func:`isf.neighbour_graph.walk`; the tree settles a walk that meets a tie),
-            else it bounds the tree's search (a guess not closer than the limit is ignored).
+            else it bounds the tree's search (:func:`tree_nearest`).
         points, tree: :attr:`NearestPoints.points` and :attr:`NearestPoints.tree`.
         scratch: :func:`search_scratch`.
         limit: squared search radius, m^2.
     """
-    best, best_d2 = -1, limit
     if guess >= 0 and len(tree[8]):
         found, found_d2, tied = walk(x, y, z, guess, points, tree[8], tree[9])
         if not tied:
             return (found, found_d2) if found_d2 < limit else (-1, limit)
         guess = found  # a tie: the tree settles it, bounded by the walk's answer
-    if guess >= 0:
-        d2 = (points[guess, 0] - x) ** 2 + (points[guess, 1] - y) ** 2 + (points[guess, 2] - z) ** 2
+    return tree_nearest(x, y, z, guess, points, tree, scratch, limit)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def tree_nearest(x, y, z, bound, points, tree, scratch, limit):
+    """:func:`nearest_point` by the k-d tree alone, its search bounded from the start by the
+    distance of point ``bound`` (-1: none; ignored when not closer than the limit)."""
+    best, best_d2 = -1, limit
+    if bound >= 0:
+        d2 = (points[bound, 0] - x) ** 2 + (points[bound, 1] - y) ** 2 + (points[bound, 2] - z) ** 2
         if d2 < limit:
-            best, best_d2 = guess, d2
+            best, best_d2 = bound, d2
     return kdtree.nearest(x, y, z, best, best_d2, tree[0], tree[1], tree[2], tree[3], tree[4], tree[5],
                           tree[6], tree[7], scratch[0], scratch[1], scratch[2])
 
@@ -66,16 +73,18 @@ def nearest_point(x, y, z, guess, points, tree, scratch, limit):
 def _query(queries, guess, limit, points, tree):
     """:func:`nearest_point` of each query (M, 3) with its guess (M,) within the squared radius
     ``limit``: distances (M,), indices (M,); ``inf`` and -1 where no point is that close. A query
-    without a guess starts from the previous query's answer (queries often come in runs)."""
+    without a guess searches the tree bounded by the previous query's answer (queries often
+    come in runs; a walk from there could cross the object when they do not)."""
     m = len(queries)
     distance, index = np.full(m, np.inf), np.full(m, -1, np.int64)
     scratch = search_scratch()
     for q in range(m):
-        start = guess[q]
-        if start < 0 and q > 0:
-            start = index[q - 1]
-        best, d2 = nearest_point(queries[q, 0], queries[q, 1], queries[q, 2], start, points, tree,
-                                 scratch, limit)
+        x, y, z = queries[q, 0], queries[q, 1], queries[q, 2]
+        if guess[q] >= 0:
+            best, d2 = nearest_point(x, y, z, guess[q], points, tree, scratch, limit)
+        else:
+            best, d2 = tree_nearest(x, y, z, index[q - 1] if q > 0 else -1, points, tree, scratch,
+                                    limit)
         if best >= 0:
             distance[q], index[q] = np.sqrt(d2), best
     return distance, index
@@ -132,8 +141,8 @@ class NearestPoints:
             queries: query points, (M, 3).
             guess: optional candidate index per query (M,) (-1 for none), e.g. the answer of a
                 previous query from nearby; it speeds the search and never changes its answer.
-                A query without one starts from the previous query's answer (queries often
-                come in runs of neighbours, such as samples along a surface).
+                A query without one searches the tree bounded by the previous query's answer
+                (queries often come in runs of neighbours, such as samples along a surface).
 
         Returns:
             distances (M,) and indices (M,) into ``points``; among equally near points the
