@@ -108,13 +108,65 @@ def _filter_pairs(dist, target, group_starts, fit_starts, outlier_factor, outlie
 def keep_inliers(dist, a, b, outlier_factor, outlier_floor, compatible, keep, ranked):
     """``keep[a:b]``: the rows of one outlier group within ``max(outlier_factor * median,
     outlier_floor)`` of their match that are ``compatible``. ``ranked``: scratch of >= b - a."""
-    n = b - a
-    ranked[:n] = dist[a:b]
-    ranked[:n].sort()
-    median = 0.5 * (ranked[(n - 1) // 2] + ranked[n // 2])
-    threshold = max(outlier_factor * median, outlier_floor)
+    threshold = outlier_threshold(dist, a, b, outlier_factor, outlier_floor, ranked)
     for i in range(a, b):
         keep[i] = dist[i] <= threshold and compatible[i]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def outlier_threshold(dist, a, b, outlier_factor, outlier_floor, ranked):
+    """``max(outlier_factor * median(dist[a:b]), outlier_floor)``, as numpy's median gives it
+    (the mean of the two middle values for an even count); ``outlier_floor`` for no rows.
+    ``ranked``: scratch of >= b - a.
+
+    Most groups are settled by one counting pass: when more than half the distances lie
+    within ``outlier_floor / outlier_factor`` (tested as ``outlier_factor * d <=
+    outlier_floor``), so does the upper middle value, hence the median, and the floor is the
+    threshold. Otherwise the middle values are selected (:func:`select`), not sorted."""
+    n = b - a
+    within = 0
+    for i in range(a, b):
+        within += outlier_factor * dist[i] <= outlier_floor
+    if n == 0 or within > n // 2:
+        return outlier_floor
+    ranked[:n] = dist[a:b]
+    upper = select(ranked, n, n // 2)  # leaves ranked[:n // 2] <= upper
+    lower = upper
+    if n % 2 == 0:
+        lower = ranked[0]
+        for i in range(1, n // 2):
+            lower = max(lower, ranked[i])
+    return max(outlier_factor * (0.5 * (lower + upper)), outlier_floor)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def select(values, n, k):
+    """The ``k``-th smallest of ``values[:n]`` (0-based, finite values), by quickselect with a
+    three-way partition (linear time on average, also with many equal values). Reorders
+    ``values[:n]`` so that ``values[:k] <= values[k] <= values[k + 1:n]``."""
+    lo, hi = 0, n - 1
+    while lo < hi:
+        x, y, z = values[lo], values[(lo + hi) // 2], values[hi]  # the median of three as pivot
+        pivot = max(min(x, y), min(max(x, y), z))
+        less, i, more = lo, lo, hi  # [lo, less) < pivot, [less, i) == pivot, (more, hi] > pivot
+        while i <= more:
+            v = values[i]
+            if v < pivot:
+                values[i], values[less] = values[less], v
+                less += 1
+                i += 1
+            elif v > pivot:
+                values[i], values[more] = values[more], v
+                more -= 1
+            else:
+                i += 1
+        if k < less:
+            hi = less - 1
+        elif k > more:
+            lo = more + 1
+        else:
+            return pivot
+    return values[k]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

@@ -74,3 +74,43 @@ def test_filters_equal_a_plain_reference():
                            normals=normals, max_normal_angle=2.0, outlier_groups=groups)
         assert pairs.source.tolist() == expected, trial
         np.testing.assert_array_equal(pairs.target, target[expected])
+
+
+def test_outlier_threshold_equals_numpy_median_with_ties_and_either_branch():
+    """The counting shortcut (floor settles it) and the selection both give exactly
+    max(factor * np.median, floor), on distances with many equal values."""
+    from isf.correspondence import outlier_threshold
+
+    rng = np.random.default_rng(3)
+    branches = set()
+    for trial in range(3000):
+        n = int(rng.integers(0, 80))
+        kind = trial % 3
+        if kind == 0:
+            dist = rng.exponential(0.003, n)
+        elif kind == 1:
+            dist = np.round(rng.exponential(0.003, n), 4)  # ties
+        else:
+            dist = rng.choice([0.001, 0.0016, 0.0017, 0.01], n)  # ties across the floor / factor
+        factor, floor = float(rng.choice([2.0, 3.0])), float(rng.choice([0.0, 0.002, 0.005]))
+        expected = floor if n == 0 else max(factor * np.median(dist), floor)
+        padded = np.r_[rng.uniform(size=3), dist, rng.uniform(size=2)]  # a group inside an array
+        assert outlier_threshold(padded, 3, 3 + n, factor, floor, np.empty(n + 1)) == expected, trial
+        if n:
+            branches.add(bool((factor * dist <= floor).sum() > n // 2))
+    assert branches == {True, False}
+
+
+def test_select_returns_the_kth_value_and_partitions_around_it():
+    from isf.correspondence import select
+
+    rng = np.random.default_rng(4)
+    for trial in range(2000):
+        n = int(rng.integers(1, 60))
+        values = np.round(rng.normal(size=n), int(rng.integers(0, 3)))  # ties for few decimals
+        k = int(rng.integers(0, n))
+        work = values.copy()
+        kth = select(work, n, k)
+        assert kth == np.sort(values)[k], trial
+        assert (work[:k] <= kth).all() and (work[k + 1:] >= kth).all()
+        np.testing.assert_array_equal(np.sort(work), np.sort(values))
