@@ -302,6 +302,7 @@ class ClearanceRepair:
         obj, cfg = self.object, self.config
         reach = cfg.activation + cfg.margin + 2.0 * obj.spacing
         planes = self._planes
+        planes.note_searches(len(world))
         return sample_rows(
             np.ascontiguousarray(world, dtype=np.float64), guess, floor, element, known.violation,
             known.element, len(self.gripper.geometries), cfg.activation, cfg.max_rows,

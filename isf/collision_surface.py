@@ -18,6 +18,13 @@ from .nearest import NearestPoints, search_scratch
 
 NEIGHBOURS = 6  # tangent planes of the nearest surface points a point must lie below to be inside
 TREE_LEAF_SIZE = 32
+GRAPH_PAYBACK = 600
+"""Searches per point after which a deferred Delaunay graph (:class:`TangentPlanes`) is built.
+Qhull costs about 50 us per point of a resampled mesh (25-65 us), and the repair's search of its dense
+planes from a guess, counted per gripper sample of a repair step, saves about 0.08 us by
+walking (``docs/benchmarks.md``, fourteenth session): so a graph built after about 600
+samples per point has been paid for by then, and planning once pays at most about twice what
+the better choice in hindsight (build it at once, or never) would have cost."""
 """The leaf size of a surface's k-d tree. The checks and the repair query points millimetres
 to centimetres from a dense surface sample, where leaves of 32 points answered a third faster
 than leaves of 8 (the same answers)."""
@@ -62,21 +69,35 @@ class TangentPlanes:
 
     ``graph``: the search also walks the points' Delaunay graph from a guess
     (:class:`isf.nearest.NearestPoints`), worth its set-up where many searches start near
-    their answer. ``search``: an existing search on the same points to use instead of
-    building one (e.g. the object's own, :attr:`isf.ObjectSurface.search`).
+    their answer: ``True`` builds it now, ``"deferred"`` once the searches counted by
+    :meth:`note_searches` reach :data:`GRAPH_PAYBACK` per point. ``search``: an existing
+    search on the same points to use instead of building one (e.g. the object's own,
+    :attr:`isf.ObjectSurface.search`).
     """
 
-    def __init__(self, points: np.ndarray, normals: np.ndarray, spacing: float, graph: bool = False,
-                 search: NearestPoints | None = None):
+    def __init__(self, points: np.ndarray, normals: np.ndarray, spacing: float,
+                 graph: bool | str = False, search: NearestPoints | None = None):
         self.points = np.ascontiguousarray(points, dtype=float)
         self.normals = np.ascontiguousarray(normals, dtype=float)
         self.spacing = float(spacing)
         """Typical distance between neighbouring points, metres."""
         if search is not None and not np.array_equal(search.points, self.points):
             raise ValueError("search must be built on the same points")
-        self.tree = NearestPoints(self.points, leaf_size=TREE_LEAF_SIZE, graph=graph) \
+        if graph not in (True, False, "deferred"):
+            raise ValueError(f"graph must be True, False or 'deferred', got {graph!r}")
+        self.tree = NearestPoints(self.points, leaf_size=TREE_LEAF_SIZE, graph=graph is True) \
             if search is None else search
         """Exact nearest-neighbour search on ``points``."""
+        self._searches_before_graph = GRAPH_PAYBACK * len(self.points) if graph == "deferred" \
+            else np.inf
+
+    def note_searches(self, count: int) -> None:
+        """Count ``count`` searches from guesses that a caller makes on :attr:`tree`; a deferred
+        graph is built once they reach :data:`GRAPH_PAYBACK` per point."""
+        self._searches_before_graph -= count
+        if self._searches_before_graph <= 0:
+            self._searches_before_graph = np.inf  # built here, or being built by another thread
+            self.tree.add_graph()
 
     def evaluate(self, query: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Signed distance of points (M, 3), metres (M,), negative inside; the normal of the

@@ -19,6 +19,8 @@ Compiled callers search per query with :func:`nearest_point` (or
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 from numba import njit
 
@@ -127,12 +129,38 @@ class NearestPoints:
         if isinstance(leaf_size, bool) or not isinstance(leaf_size, (int, np.integer)) or leaf_size < 1:
             raise ValueError(f"leaf_size must be a positive integer, got {leaf_size!r}")
         order, *nodes = kdtree.build(self.points, int(leaf_size))
-        indptr, indices = neighbour_graph(self.points) if graph else NO_GRAPH
-        self.tree = (self.points[order], order, *nodes, indptr, indices)
+        self.tree = (self.points[order], order, *nodes, *NO_GRAPH)
         """The arrays of the search, for :func:`nearest_point` and
         :func:`isf.kdtree.k_nearest`. First the tree's (the points in tree order, leaves
         contiguous, then :func:`isf.kdtree.build`'s), then the graph's ``indptr`` and
-        ``indices`` (empty without a graph)."""
+        ``indices`` (empty without a graph). :meth:`add_graph` replaces the tuple (never
+        changes its arrays), so a search that holds the old tuple stays valid."""
+        self._graph_lock = threading.Lock()
+        self._graph_tried = False
+        if graph:
+            self.add_graph()
+
+    @property
+    def has_graph(self) -> bool:
+        """Whether searches from a guess walk the Delaunay graph."""
+        return len(self.tree[8]) > 0
+
+    def add_graph(self) -> bool:
+        """Build the points' Delaunay graph (:mod:`isf.neighbour_graph`; 25-65 us per point),
+        if no call did before, and let searches from a guess walk it. Returns whether the search
+        has a graph (points in one plane, too few or too many get none). Thread-safe: while
+        one thread builds, a call from another returns at once (False) and its searches use the
+        tree."""
+        if not self._graph_lock.acquire(blocking=False):
+            return False
+        try:
+            if not self._graph_tried:
+                self._graph_tried = True
+                indptr, indices = neighbour_graph(self.points)
+                self.tree = (*self.tree[:8], indptr, indices)
+        finally:
+            self._graph_lock.release()
+        return self.has_graph
 
     def query(self, queries: np.ndarray, guess: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Nearest point of each query point.

@@ -110,7 +110,9 @@ def _gripper_side(gripper, spacing, max_samples, margin, contact_allowance, rng)
 def object_side(obj: ObjectSurface, spacing: float, rng: np.random.Generator) -> ObjectSide:
     """The object's :class:`ObjectSide`: a closed, outward mesh object finer than ``spacing``
     metres is resampled that densely (its own points are kept too), with a seed drawn from
-    ``rng``; a point cloud or an open mesh keeps its own points."""
+    ``rng``, and the dense planes' Delaunay graph is deferred until the repair's searches have
+    paid for it (:data:`isf.collision_surface.GRAPH_PAYBACK`); a point cloud or an open mesh
+    keeps its own points."""
     mesh = None if spacing >= obj.spacing else closed_mesh(obj)
     if mesh is None:  # the object's own points, and its search (with their graph)
         planes = TangentPlanes(obj.points, obj.normals, obj.spacing, search=obj.search)
@@ -125,7 +127,7 @@ def object_side(obj: ObjectSurface, spacing: float, rng: np.random.Generator) ->
         points, face = trimesh.sample.sample_surface(mesh, count, seed=seed)
         planes = TangentPlanes(np.concatenate([obj.points, points]),
                                np.concatenate([obj.normals, mesh.face_normals[face]]), spacing,
-                               graph=True)
+                               graph="deferred")
         memo[key] = ObjectSide(planes, PointGrid(planes.points, GRID_CELL), True)
     return memo[key]
 

@@ -262,3 +262,61 @@ def test_plans_are_the_same_with_and_without_the_graph(monkeypatch):
     walked = grasps(graph=True)
     monkeypatch.setattr(neighbour_graph, "MAX_POINTS", 0)
     assert walked == grasps(graph=False)
+
+
+def test_a_graph_added_later_changes_no_answer_and_leaves_the_old_arrays_valid():
+    rng = np.random.default_rng(5)
+    points = _surface_cases(rng)["cylinder"]
+    search = NearestPoints(points)
+    assert not search.has_graph
+    before = search.tree
+    queries = points[rng.integers(len(points), size=300)] + 0.002 * rng.normal(size=(300, 3))
+    guess = rng.integers(len(points), size=300)
+    expected = search.query(queries, guess)
+    assert search.add_graph() and search.has_graph
+    assert search.add_graph()  # built once; later calls only report it
+    assert search.tree is not before and all(a is b for a, b in zip(search.tree[:8], before[:8]))
+    for answer in (search.query(queries, guess), NearestPoints(points, graph=True).query(queries, guess)):
+        np.testing.assert_array_equal(answer[0], expected[0])
+        np.testing.assert_array_equal(answer[1], expected[1])
+    np.testing.assert_array_equal(expected[1], _brute_force(points, queries)[1])
+
+
+def test_a_deferred_graph_is_built_once_its_searches_have_paid_for_it(monkeypatch):
+    from isf import collision_surface
+    from isf.collision_surface import TangentPlanes
+
+    monkeypatch.setattr(collision_surface, "GRAPH_PAYBACK", 3)
+    points = _surface_cases(np.random.default_rng(6))["cylinder"]  # 600 points
+    normals = points * [1.0, 1.0, 0.0] / 0.02
+    planes = TangentPlanes(points, normals, 0.003, graph="deferred")
+    planes.note_searches(1799)
+    assert not planes.tree.has_graph
+    planes.note_searches(1)  # 3 per point
+    assert planes.tree.has_graph
+    assert not TangentPlanes(points, normals, 0.003).tree.has_graph
+    assert TangentPlanes(points, normals, 0.003, graph=True).tree.has_graph
+    with pytest.raises(ValueError, match="deferred"):
+        TangentPlanes(points, normals, 0.003, graph="later")
+
+
+def test_plans_are_the_same_whether_the_dense_planes_graph_comes_early_or_never(monkeypatch):
+    """A coarse mesh is resampled densely for the repair; its planes' graph built after the first
+    searches (mid-plan) or never: the same grasps, number for number."""
+    import isf
+    from isf import collision_surface
+    from isf.collision_surface import mesh_memo
+
+    gripper = isf.load_gripper("three-finger")
+
+    def grasps(payback):
+        monkeypatch.setattr(collision_surface, "GRAPH_PAYBACK", payback)
+        obj = isf.open_object("shape:cylinder", max_points=600)
+        result = isf.plan(gripper, obj, samples=8, seed=3)
+        dense = [side.planes for key, side in mesh_memo(obj).items() if key[0] == "repair surface"]
+        # a graph only comes from the repair's counted searches: there were some
+        assert len(dense) == 1 and dense[0].tree.has_graph == (payback < 10**6)
+        return [(g.collision_free, g.fit.mean_distance, g.fit.T_object_gripper.tobytes(),
+                 g.fit.q.tobytes()) for g in result.grasps]
+
+    assert grasps(0.05) == grasps(10**9)
