@@ -23,7 +23,7 @@ after ``I_l = I0 / 2**l`` iterations. A gripper that does not move at all
 from __future__ import annotations
 
 import time
-from collections.abc import Hashable
+from collections.abc import Hashable, Sequence
 
 import numpy as np
 
@@ -34,7 +34,7 @@ from .finger_step import FingerStepQP
 from .gripper import Gripper
 from .ipfo import answer_requests, ipfo_parameters
 from .object_surface import ObjectSurface
-from .result import FitResult, FitStatus, IterationRecord
+from .result import FitResult, FitStatus, History, IterationRecord
 
 __all__ = ["LockstepFitter", "score_fit"]
 
@@ -140,16 +140,9 @@ class LockstepFitter:
         return _scored(self.gripper, self.obj, self.config, self._grip, T.copy(), q.copy(), R, p,
                        last, _STATUS[int(status)], self._records(b), elapsed)
 
-    def _records(self, b: int) -> tuple[IterationRecord, ...]:
+    def _records(self, b: int) -> History:
         count = int(self._history[-1][b])
-        level, iteration, distance, error, pairs, n_ipfo = (
-            a[b, :count].tolist() for a in self._history[:5] + (self._history[7],))
-        ipfo = self._history[6][b, :count].tolist()
-        q = self._history[5][b, :count].copy()
-        return tuple(IterationRecord(level=level[h], iteration=iteration[h],
-                                     mean_distance=distance[h], error=error[h], n_pairs=pairs[h],
-                                     q=q[h], ipfo_errors=tuple(ipfo[h][:n_ipfo[h]]))
-                     for h in range(count))
+        return History(*(a[b, :count].copy() for a in self._history[:8]))
 
     def _allocate(self, n_slots: int) -> tuple[tuple, tuple]:
         """Empty slot and history arrays for ``n_slots`` fits (see
@@ -207,7 +200,7 @@ def fit_parameters(config: FitConfig) -> tuple:
 
 
 def score_fit(gripper: Gripper, obj: ObjectSurface, T: np.ndarray, q: np.ndarray, config: FitConfig,
-              status: FitStatus, history: tuple[IterationRecord, ...], elapsed: float) -> FitResult:
+              status: FitStatus, history: Sequence[IterationRecord], elapsed: float) -> FitResult:
     """The :class:`FitResult` of a final state ``(T, q)``: all contact points matched afresh."""
     links = gripper.link_kinematics(q)
     last = np.full(gripper.n_points, -1, np.int64)
@@ -218,7 +211,7 @@ def score_fit(gripper: Gripper, obj: ObjectSurface, T: np.ndarray, q: np.ndarray
 
 def _scored(gripper: Gripper, obj: ObjectSurface, config: FitConfig, grip: tuple, T: np.ndarray,
             q: np.ndarray, R: np.ndarray, p: np.ndarray, last: np.ndarray, status: FitStatus,
-            history: tuple[IterationRecord, ...], elapsed: float) -> FitResult:
+            history: Sequence[IterationRecord], elapsed: float) -> FitResult:
     """:func:`isf.lockstep_kernel.score_state` of a state as a :class:`FitResult` (``grip``:
     :func:`gripper_arrays`; ``last``: each contact point's last nearest object point, (P,),
     -1 for none)."""

@@ -1,13 +1,15 @@
-"""Results of a fit: :class:`FitResult` and its per-iteration :class:`IterationRecord`."""
+"""Results of a fit: :class:`FitResult`, its per-iteration :class:`IterationRecord` and their
+:class:`History`."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import Enum
 
 import numpy as np
 
-__all__ = ["FitResult", "FitStatus", "IterationRecord"]
+__all__ = ["FitResult", "FitStatus", "History", "IterationRecord"]
 
 
 class FitStatus(str, Enum):
@@ -42,6 +44,52 @@ class IterationRecord:
     n_pairs: int
     q: np.ndarray
     ipfo_errors: tuple[float, ...]
+
+
+class History(Sequence):
+    """The :class:`IterationRecord` of each ISF iteration of a fit, in order: a read-only
+    sequence kept as arrays and turned into records when first read (a plan makes thousands
+    of records that nobody reads).
+
+    Args:
+        level, iteration: per iteration (H,), integers.
+        mean_distance, error: per iteration (H,), metres and m^2.
+        n_pairs: per iteration (H,), integers.
+        q: joint vector after each iteration (H, n_joints).
+        ipfo_errors: IPFO's errors per iteration (H, I), of which the first ``n_ipfo`` (H,)
+            of each row count.
+    """
+
+    def __init__(self, level: np.ndarray, iteration: np.ndarray, mean_distance: np.ndarray,
+                 error: np.ndarray, n_pairs: np.ndarray, q: np.ndarray, ipfo_errors: np.ndarray,
+                 n_ipfo: np.ndarray):
+        self._arrays = (level, iteration, mean_distance, error, n_pairs, q, ipfo_errors, n_ipfo)
+        self._length = len(level)
+        self._records: tuple[IterationRecord, ...] | None = None
+
+    def _built(self) -> tuple[IterationRecord, ...]:
+        if self._records is None:
+            level, iteration, distance, error, pairs, q, ipfo, n_ipfo = self._arrays
+            level, iteration, distance, error, pairs, n_ipfo, ipfo = (
+                a.tolist() for a in (level, iteration, distance, error, pairs, n_ipfo, ipfo))
+            self._records = tuple(
+                IterationRecord(level=level[h], iteration=iteration[h], mean_distance=distance[h],
+                                error=error[h], n_pairs=pairs[h], q=q[h],
+                                ipfo_errors=tuple(ipfo[h][:n_ipfo[h]]))
+                for h in range(self._length))
+        return self._records
+
+    def __len__(self) -> int:
+        return self._length
+
+    def __getitem__(self, index):
+        return self._built()[index]
+
+    def __iter__(self):
+        return iter(self._built())
+
+    def __repr__(self) -> str:
+        return f"History({self._length} iterations)"
 
 
 @dataclass(frozen=True, eq=False)
@@ -81,7 +129,7 @@ class FitResult:
     surface_contact: dict[str, float]
     iterations: int
     status: FitStatus
-    history: tuple[IterationRecord, ...]
+    history: Sequence[IterationRecord]
     time: float
 
     @property

@@ -108,3 +108,25 @@ def test_fits_solved_by_osqp_do_not_depend_on_the_fits_before_them(cylinder, mon
         for other in (together[k], alone):
             np.testing.assert_array_equal(result.T_object_gripper, other.T_object_gripper)
             np.testing.assert_array_equal(result.q, other.q)
+
+
+def test_the_history_reads_as_the_records_of_the_kernels_arrays():
+    """The records, built when first read, hold the numbers the rounds logged: one per
+    iteration, in order, with each level's iterations counted from 1."""
+    gripper = isf.load_gripper("paper-parallel")
+    obj = isf.open_object("shape:cylinder")
+    result = isf.fit(gripper, obj, T_object_gripper=make_transform(np.eye(3), [0.004, 0.0, 0.002]))
+    history = result.history
+    assert len(history) == result.iterations > 0 and repr(history).startswith("History(")
+    records = list(history)
+    assert all(history[h] is records[h] for h in range(len(history))) and history[-1] is records[-1]
+    assert all(a is b for a, b in zip(history[1:3], records[1:3])) and len(history[1:3]) == 2
+    levels = [r.level for r in records]
+    assert levels == sorted(levels, reverse=True)
+    for level in set(levels):
+        assert [r.iteration for r in records if r.level == level] == list(
+            range(1, levels.count(level) + 1))
+    assert all(isinstance(r.level, int) and isinstance(r.n_pairs, int) and r.n_pairs > 0
+               and r.q.shape == (gripper.n_joints,) and 1 <= len(r.ipfo_errors) for r in records)
+    assert np.isfinite([r.mean_distance for r in records]).all()
+    np.testing.assert_array_equal(records[-1].q, result.q)  # the last IPFO's joints are the fit's
