@@ -18,16 +18,16 @@ from .nearest import NearestPoints, search_scratch
 
 NEIGHBOURS = 6  # tangent planes of the nearest surface points a point must lie below to be inside
 TREE_LEAF_SIZE = 32
-GRAPH_PAYBACK = 600
-"""Searches per point after which a deferred Delaunay graph (:class:`TangentPlanes`) is built.
-Qhull costs about 50 us per point of a resampled mesh (25-65 us), and the repair's search of its dense
-planes from a guess, counted per gripper sample of a repair step, saves about 0.08 us by
-walking (``docs/benchmarks.md``, fourteenth session): so a graph built after about 600
-samples per point has been paid for by then, and planning once pays at most about twice what
-the better choice in hindsight (build it at once, or never) would have cost."""
 """The leaf size of a surface's k-d tree. The checks and the repair query points millimetres
 to centimetres from a dense surface sample, where leaves of 32 points answered a third faster
 than leaves of 8 (the same answers)."""
+GRAPH_PAYBACK = 600
+"""Searches per point after which a deferred Delaunay graph (:class:`TangentPlanes`) is built.
+Qhull takes about 40-60 us per point of a resampled mesh's dense planes, and walking saves a
+repair search of them, counted per gripper sample of a repair step, about 0.1 us (0.07-0.12;
+``docs/benchmarks.md``, fourteenth session): after about 600 searches per point the savings
+forgone equal the graph's cost (the ski-rental rule), so a single plan does without the graph
+and a series of plans pays at most about twice the better choice in hindsight."""
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
