@@ -447,7 +447,7 @@ def _clearance_candidates(poses, act, apart, row, rp, pk, foot, samples, surface
             continue
         s, f = row[r], foot[rp[r]]
         x, y, z = _transform(poses, e, samples[s, 0], samples[s, 1], samples[s, 2])
-        d = np.sqrt((x - points[f, 0]) ** 2 + (y - points[f, 1]) ** 2 + (z - points[f, 2]) ** 2)
+        d = np.sqrt(kdtree.squared_distance(points, f, x, y, z))
         if n == CLEARANCE_CANDIDATES and d >= far[n - 1]:
             continue
         j = min(n, CLEARANCE_CANDIDATES - 1)

@@ -12,7 +12,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["LEAF_SIZE", "PRUNE_SLACK", "STACK_SIZE", "build", "k_nearest", "nearest"]
+__all__ = ["LEAF_SIZE", "PRUNE_SLACK", "STACK_SIZE", "build", "k_nearest", "nearest",
+           "squared_distance"]
 
 LEAF_SIZE = 8
 """Points per leaf at most."""
@@ -101,6 +102,13 @@ def _descend(node, bound, ox, oy, oz, x, y, z, limit, axis, split, left, right,
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def squared_distance(points, i, x, y, z):
+    """``|points[i] - (x, y, z)|^2``, summed in coordinate order (every search here compares
+    distances computed this way, so equal points give equal distances)."""
+    return (points[i, 0] - x) ** 2 + (points[i, 1] - y) ** 2 + (points[i, 2] - z) ** 2
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def nearest(x, y, z, best, best_d2, tree_points, order, start, stop, axis, split, left, right,
             stack_node, stack_bound, stack_offset):
     """The nearest point to ``(x, y, z)``: ``(index, squared distance)``.
@@ -123,7 +131,7 @@ def nearest(x, y, z, best, best_d2, tree_points, order, start, stop, axis, split
         node, top = _descend(node, bound, ox, oy, oz, x, y, z, best_d2 * PRUNE_SLACK, axis, split,
                              left, right, stack_node, stack_bound, stack_offset, top)
         for i in range(start[node], stop[node]):
-            d2 = (tree_points[i, 0] - x) ** 2 + (tree_points[i, 1] - y) ** 2 + (tree_points[i, 2] - z) ** 2
+            d2 = squared_distance(tree_points, i, x, y, z)
             if d2 <= best_d2:
                 p = order[i]
                 if d2 < best_d2 or p < best:
@@ -165,7 +173,7 @@ def k_nearest(x, y, z, best_d2, best, tree_points, order, start, stop, axis, spl
         node, top = _descend(node, bound, ox, oy, oz, x, y, z, worst_d2 * PRUNE_SLACK, axis, split,
                              left, right, stack_node, stack_bound, stack_offset, top)
         for i in range(start[node], stop[node]):
-            d2 = (tree_points[i, 0] - x) ** 2 + (tree_points[i, 1] - y) ** 2 + (tree_points[i, 2] - z) ** 2
+            d2 = squared_distance(tree_points, i, x, y, z)
             if d2 > worst_d2:
                 continue
             p = order[i]

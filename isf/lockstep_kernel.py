@@ -35,6 +35,7 @@ from numba import njit
 
 from .correspondence import keep_inliers, reject_duplicate_targets
 from .ipfo_kernel import DONE, resume
+from .kdtree import squared_distance
 from .moment_kernels import fit_errors, group_moments, link_poses, place, points_in_object
 from .nearest import nearest_point, search_scratch
 
@@ -78,10 +79,8 @@ def _match(points, normals, rows, count, grip, obj, fit_params, last, dist, targ
         start = last[g]
         if i > 0 and start >= 0:  # or the previous point's answer, when nearer
             previous = target[i - 1]
-            if ((obj_points[previous, 0] - x) ** 2 + (obj_points[previous, 1] - y) ** 2
-                    + (obj_points[previous, 2] - z) ** 2
-                    < (obj_points[start, 0] - x) ** 2 + (obj_points[start, 1] - y) ** 2
-                    + (obj_points[start, 2] - z) ** 2):
+            if (squared_distance(obj_points, previous, x, y, z)
+                    < squared_distance(obj_points, start, x, y, z)):
                 start = previous
         target[i], d2 = nearest_point(x, y, z, start, obj_points, tree, scratch, np.inf)
         last[g] = target[i]

@@ -64,7 +64,7 @@ def tree_nearest(x, y, z, bound, points, tree, scratch, limit):
     distance of point ``bound`` (-1: none; ignored when not closer than the limit)."""
     best, best_d2 = -1, limit
     if bound >= 0:
-        d2 = (points[bound, 0] - x) ** 2 + (points[bound, 1] - y) ** 2 + (points[bound, 2] - z) ** 2
+        d2 = kdtree.squared_distance(points, bound, x, y, z)
         if d2 < limit:
             best, best_d2 = bound, d2
     return kdtree.nearest(x, y, z, best, best_d2, tree[0], tree[1], tree[2], tree[3], tree[4], tree[5],

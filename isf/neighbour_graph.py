@@ -41,6 +41,8 @@ import numpy as np
 from numba import njit
 from scipy.spatial import Delaunay, QhullError
 
+from .kdtree import squared_distance
+
 __all__ = ["FLAT", "MAX_POINTS", "NO_GRAPH", "QHULL_OPTIONS", "neighbour_graph", "walk"]
 
 NO_GRAPH = (np.zeros(0, np.int64), np.zeros(0, np.int64))
@@ -111,12 +113,12 @@ def walk(x, y, z, start, points, indptr, indices):
     current point; ``tied``: the point it stops at has a neighbour exactly as near (the
     answer is then not settled)."""
     v = start
-    dv = (points[v, 0] - x) ** 2 + (points[v, 1] - y) ** 2 + (points[v, 2] - z) ** 2
+    dv = squared_distance(points, v, x, y, z)
     while True:
         best, best_d2, tied = v, dv, False
         for j in range(indptr[v], indptr[v + 1]):
             w = indices[j]
-            d2 = (points[w, 0] - x) ** 2 + (points[w, 1] - y) ** 2 + (points[w, 2] - z) ** 2
+            d2 = squared_distance(points, w, x, y, z)
             if d2 < best_d2:
                 best, best_d2 = w, d2
             elif d2 == dv:
