@@ -51,7 +51,7 @@ def nearest_point(x, y, z, guess, points, tree, scratch, limit):
         limit: squared search radius, m^2.
     """
     if guess >= 0 and len(tree[8]):
-        found, found_d2, tied = walk(x, y, z, guess, points, tree[8], tree[9])
+        found, found_d2, tied = walk(x, y, z, guess, points, tree[8], tree[9], tree[10])
         if not tied:
             return (found, found_d2) if found_d2 < limit else (-1, limit)
         guess = found  # a tie: the tree settles it, bounded by the walk's answer
@@ -132,8 +132,9 @@ class NearestPoints:
         self.tree = (self.points[order], order, *nodes, *NO_GRAPH)
         """The arrays of the search, for :func:`nearest_point` and
         :func:`isf.kdtree.k_nearest`. First the tree's (the points in tree order, leaves
-        contiguous, then :func:`isf.kdtree.build`'s), then the graph's ``indptr`` and
-        ``indices`` (empty without a graph). :meth:`add_graph` replaces the tuple (never
+        contiguous, then :func:`isf.kdtree.build`'s), then the graph's ``indptr``,
+        ``indices`` and ``cutoff`` (:func:`isf.neighbour_graph.neighbour_graph`; empty without
+        a graph). :meth:`add_graph` replaces the tuple (never
         changes its arrays), so a search that holds the old tuple stays valid."""
         self._graph_lock = threading.Lock()
         self._graph_tried = False
@@ -156,8 +157,7 @@ class NearestPoints:
         try:
             if not self._graph_tried:
                 self._graph_tried = True
-                indptr, indices = neighbour_graph(self.points)
-                self.tree = (*self.tree[:8], indptr, indices)
+                self.tree = (*self.tree[:8], *neighbour_graph(self.points))
         finally:
             self._graph_lock.release()
         return self.has_graph

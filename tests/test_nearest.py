@@ -218,7 +218,7 @@ def test_the_graph_links_each_point_to_its_nearest_and_copies_to_their_first():
     rng = np.random.default_rng(4)
     distinct = rng.normal(size=(300, 3)) * [1.0, 0.4, 0.05]
     points = np.concatenate([distinct, distinct[:20]])
-    indptr, indices = neighbour_graph(points)
+    indptr, indices, cutoff = neighbour_graph(points)
     assert len(indptr) == len(points) + 1 and np.all(np.diff(indptr) > 0)
     neighbours = [set(indices[indptr[i]:indptr[i + 1]].tolist()) for i in range(len(points))]
     d2 = ((distinct[:, None] - distinct[None]) ** 2).sum(axis=2)
@@ -229,6 +229,27 @@ def test_the_graph_links_each_point_to_its_nearest_and_copies_to_their_first():
         assert not neighbours[i] & set(range(300, 320))
     for copy in range(300, 320):
         assert copy - 300 in neighbours[copy]
+
+
+def test_the_graph_lists_neighbours_nearest_first_with_the_walks_cutoffs():
+    """Each point's neighbours come nearest first, the first is its nearest other point (brute
+    force), and each cutoff is a quarter of the squared distance to that neighbour, just below."""
+    rng = np.random.default_rng(6)
+    distinct = rng.normal(size=(300, 3)) * [1.0, 0.4, 0.05]
+    points = np.concatenate([distinct, distinct[:20]])
+    indptr, indices, cutoff = neighbour_graph(points)
+    d2 = ((distinct[:, None] - distinct[None]) ** 2).sum(axis=2)
+    np.fill_diagonal(d2, np.inf)
+    for i in range(len(points)):
+        listed = indices[indptr[i]:indptr[i + 1]]
+        squared = ((points[listed] - points[i]) ** 2).sum(axis=1)
+        assert np.all(np.diff(squared) >= 0.0)
+        quarter = cutoff[indptr[i]:indptr[i + 1]]
+        assert np.all(quarter <= squared / 4.0) and np.allclose(quarter, squared / 4.0, rtol=1e-8, atol=0.0)
+        if i < len(distinct):
+            assert listed[0] == int(d2[i].argmin())
+        else:
+            assert listed[0] == i - 300 and quarter[0] == 0.0  # a copy: its first copy, at 0
 
 
 def test_no_graph_for_too_few_or_flat_points():
