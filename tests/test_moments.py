@@ -126,3 +126,42 @@ def test_structured_sandwiches_equal_the_full_sums_bit_for_bit(seed):
         _dense_sandwich(F, M, 7, cols, weight, expected)
         _add_sandwich(F, M, 7, cols, weight, got, np.empty((7, 12)), np.empty(7, np.bool_))
         np.testing.assert_array_equal(got, expected)
+
+
+def test_group_moments_are_the_pairwise_sums_in_pair_order_bit_for_bit():
+    """Each moment entry equals the sum over its group's pairs, in their order from +0, of the
+    products that define it (written out pair by pair in Python floats), bit for bit; pairs of
+    different groups interleave."""
+    from isf.moment_kernels import group_moments
+    rng = np.random.default_rng(3)
+    n_fits, n_links, K = 3, 2, 90
+    fit, link = rng.integers(0, n_fits, K), rng.integers(0, n_links, K)
+    x, m = rng.normal(scale=0.03, size=(K, 3)), rng.normal(size=(K, 3))
+    q, n = rng.normal(scale=0.05, size=(K, 3)) + 0.5, rng.normal(size=(K, 3))
+    origin, fit_count, M, N, v, beta2, w, s, count = group_moments(fit, link, x, m, q, n, n_fits, n_links)
+    for g in range(n_fits * n_links):
+        b = g // n_links
+        ks = [k for k in range(K) if fit[k] == b and link[k] == g % n_links]
+        expected = {name: np.zeros(shape) for name, shape in
+                    (("M", (12, 12)), ("N", (9, 9)), ("v", 12), ("w", 9), ("s", 4))}
+        expected_beta2 = 0.0
+        for k in ks:
+            beta = 0.0
+            for j in range(3):
+                beta += (float(q[k, j]) - float(origin[b, j])) * float(n[k, j])
+            y = [float(x[k, i]) * float(n[k, j]) for i in range(3) for j in range(3)] + list(map(float, n[k]))
+            u = [float(m[k, i]) * float(n[k, j]) for i in range(3) for j in range(3)]
+            for i in range(12):
+                expected["v"][i] += beta * y[i]
+                for j in range(12):
+                    expected["M"][i, j] += y[min(i, j)] * y[max(i, j)]
+            for i in range(9):
+                expected["w"][i] += u[i]
+                for j in range(9):
+                    expected["N"][i, j] += u[min(i, j)] * u[max(i, j)]
+            expected_beta2 += beta * beta
+            expected["s"] += [*x[k], 1.0]
+        for name, got in (("M", M), ("N", N), ("v", v), ("w", w), ("s", s)):
+            np.testing.assert_array_equal(got[g], expected[name], err_msg=name)
+        assert beta2[g] == expected_beta2 and count[g] == len(ks)
+    np.testing.assert_array_equal(fit_count, np.bincount(fit, minlength=n_fits))
