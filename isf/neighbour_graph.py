@@ -32,8 +32,9 @@ Each point's neighbours are listed nearest first, with a *cutoff* per listed nei
 at point ``v``, whose distance ``r`` from the query is less than half the distance ``e`` from
 ``v`` to its next listed neighbour, skips that neighbour and the rest. Each of them is farther
 from the query than ``e - r > r``, so it can neither be a step of the walk nor tie with ``v``.
-On the fits of ``bench/bench_rounds.py`` this halves the neighbours a walk looks at (19.6 to
-10.1 of 15 neighbours a point on average, over 1.28 points per walk).
+On the fits of ``bench/bench_rounds.py`` a walk then reads 10.1 neighbours instead of 19.6
+(a point has 15 neighbours on average, and a walk visits 1.28 points). Of neighbours equally
+near the query, a step takes the one listed first; where the walk ends does not depend on it.
 
 Exact duplicates are triangulated once (see :func:`neighbour_graph`).
 When Qhull cannot triangulate the points, or they are fewer than 5, more than
