@@ -50,6 +50,26 @@ def _add_scaled(a, r, scale, b0, b1, b2):
     a[r + 2] += scale * b2
 
 
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _add_gram(A, a0, a1, a2, b0, b1, b2, c0, c1, c2):
+    """The upper triangle of ``A[:9, :9] += z z^T`` for ``z = [a, b, c]`` (three 3-vectors), in
+    3 x 3 blocks."""
+    _add_self_outer(A, 0, a0, a1, a2)
+    _add_outer(A, 0, 3, a0, a1, a2, b0, b1, b2)
+    _add_outer(A, 0, 6, a0, a1, a2, c0, c1, c2)
+    _add_self_outer(A, 3, b0, b1, b2)
+    _add_outer(A, 3, 6, b0, b1, b2, c0, c1, c2)
+    _add_self_outer(A, 6, c0, c1, c2)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _add_scaled_three(a, scale, b0, b1, b2, c0, c1, c2, d0, d1, d2):
+    """``a[:9] += scale * [b, c, d]`` for three 3-vectors."""
+    _add_scaled(a, 0, scale, b0, b1, b2)
+    _add_scaled(a, 3, scale, c0, c1, c2)
+    _add_scaled(a, 6, scale, d0, d1, d2)
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def group_moments(fit, link, points_link, normals_link, targets, target_normals, n_fits, n_links):
     """Per-group moments of matched pairs.
@@ -105,33 +125,18 @@ def group_moments(fit, link, points_link, normals_link, targets, target_normals,
         b0, b1, b2 = x1 * n0, x1 * n1, x1 * n2
         c0, c1, c2 = x2 * n0, x2 * n1, x2 * n2
         Mg, vg = M[g], v[g]
-        _add_self_outer(Mg, 0, a0, a1, a2)
-        _add_outer(Mg, 0, 3, a0, a1, a2, b0, b1, b2)
-        _add_outer(Mg, 0, 6, a0, a1, a2, c0, c1, c2)
+        _add_gram(Mg, a0, a1, a2, b0, b1, b2, c0, c1, c2)
         _add_outer(Mg, 0, 9, a0, a1, a2, n0, n1, n2)
-        _add_self_outer(Mg, 3, b0, b1, b2)
-        _add_outer(Mg, 3, 6, b0, b1, b2, c0, c1, c2)
         _add_outer(Mg, 3, 9, b0, b1, b2, n0, n1, n2)
-        _add_self_outer(Mg, 6, c0, c1, c2)
         _add_outer(Mg, 6, 9, c0, c1, c2, n0, n1, n2)
         _add_self_outer(Mg, 9, n0, n1, n2)
-        _add_scaled(vg, 0, beta, a0, a1, a2)
-        _add_scaled(vg, 3, beta, b0, b1, b2)
-        _add_scaled(vg, 6, beta, c0, c1, c2)
+        _add_scaled_three(vg, beta, a0, a1, a2, b0, b1, b2, c0, c1, c2)
         _add_scaled(vg, 9, beta, n0, n1, n2)
         d0, d1, d2 = m0 * n0, m0 * n1, m0 * n2  # u = [d, e, f]
         e0, e1, e2 = m1 * n0, m1 * n1, m1 * n2
         f0, f1, f2 = m2 * n0, m2 * n1, m2 * n2
-        Ng, wg = N[g], w[g]
-        _add_self_outer(Ng, 0, d0, d1, d2)
-        _add_outer(Ng, 0, 3, d0, d1, d2, e0, e1, e2)
-        _add_outer(Ng, 0, 6, d0, d1, d2, f0, f1, f2)
-        _add_self_outer(Ng, 3, e0, e1, e2)
-        _add_outer(Ng, 3, 6, e0, e1, e2, f0, f1, f2)
-        _add_self_outer(Ng, 6, f0, f1, f2)
-        _add_scaled(wg, 0, 1.0, d0, d1, d2)
-        _add_scaled(wg, 3, 1.0, e0, e1, e2)
-        _add_scaled(wg, 6, 1.0, f0, f1, f2)
+        _add_gram(N[g], d0, d1, d2, e0, e1, e2, f0, f1, f2)
+        _add_scaled_three(w[g], 1.0, d0, d1, d2, e0, e1, e2, f0, f1, f2)
         beta2[g] += beta * beta
         s[g, 0] += x0
         s[g, 1] += x1
