@@ -134,7 +134,7 @@ def _warm_engine() -> None:
 def _warm_checks() -> None:
     """The kernels of the collision checks and the repair."""
     points = np.random.default_rng(0).uniform(-0.01, 0.01, (50, 3))
-    search = NearestPoints(points)
+    search = NearestPoints(points, graph=True)  # the graph's neighbour lists, sorted
     search.query_k(points[:2], 6)
     search.query_within(points[:2], 0.01)  # a bounded search
     box = trimesh.creation.box(extents=(0.01, 0.01, 0.01))

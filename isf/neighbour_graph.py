@@ -122,13 +122,23 @@ def neighbour_graph(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndar
                           np.concatenate(lists).astype(np.int64))
 
 
+@njit(cache=True, nogil=True, error_model="numpy")
 def _nearest_first(points, indptr, indices):
     """The graph ``(indptr, indices)`` with each point's neighbours sorted by their distance from
-    it (stable), and the walk's cutoffs (see :func:`neighbour_graph`)."""
-    owner = np.repeat(np.arange(len(indptr) - 1), np.diff(indptr))
-    squared = ((points[indices] - points[owner]) ** 2).sum(axis=1)
-    order = np.lexsort((squared, owner))
-    return indptr, indices[order], squared[order] * (0.25 * (1.0 - CUTOFF_MARGIN))
+    it (insertion sort, stable: the lists are short), and the walk's cutoffs (see
+    :func:`neighbour_graph`)."""
+    ordered, squared = indices.copy(), np.empty(len(indices))
+    for i in range(len(indptr) - 1):
+        x, y, z = points[i, 0], points[i, 1], points[i, 2]
+        for j in range(indptr[i], indptr[i + 1]):
+            w = ordered[j]
+            d2 = squared_distance(points, w, x, y, z)
+            k = j
+            while k > indptr[i] and squared[k - 1] > d2:
+                ordered[k], squared[k] = ordered[k - 1], squared[k - 1]
+                k -= 1
+            ordered[k], squared[k] = w, d2
+    return indptr, ordered, squared * (0.25 * (1.0 - CUTOFF_MARGIN))
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
