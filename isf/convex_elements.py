@@ -20,6 +20,7 @@ import trimesh
 from numba import njit
 from scipy.spatial import HalfspaceIntersection, QhullError
 
+from .kdtree import squared_distance
 from .point_grid import PointGrid, ball_box_candidates
 
 __all__ = ["ConvexElements", "ConvexRows"]
@@ -71,8 +72,7 @@ def _spread(directions, count):
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _distance(points, i, j):
     """Distance between rows ``i`` and ``j`` of ``points`` (N, 3)."""
-    return np.sqrt((points[i, 0] - points[j, 0]) ** 2 + (points[i, 1] - points[j, 1]) ** 2
-                   + (points[i, 2] - points[j, 2]) ** 2)
+    return np.sqrt(squared_distance(points, i, points[j, 0], points[j, 1], points[j, 2]))
 
 
 def _face_planes(vertices: np.ndarray, faces: np.ndarray):

@@ -211,18 +211,25 @@ def test_searches_from_the_last_answer_give_what_a_full_search_gives(case):
             assert (index, d2) == (int(d2_all.argmin()), float(d2_all.min())), (step, g)
 
 
+def _flat_cloud_with_copies(seed):
+    """300 distinct points of a flattened Gaussian cloud, then exact copies of the first 20:
+    ``(points, graph, d2)`` with the graph of :func:`neighbour_graph` and the squared distances
+    between the distinct points (inf on the diagonal)."""
+    distinct = np.random.default_rng(seed).normal(size=(300, 3)) * [1.0, 0.4, 0.05]
+    points = np.concatenate([distinct, distinct[:20]])
+    d2 = ((distinct[:, None] - distinct[None]) ** 2).sum(axis=2)
+    np.fill_diagonal(d2, np.inf)
+    return points, neighbour_graph(points), d2
+
+
 def test_the_graph_links_each_point_to_its_nearest_and_copies_to_their_first():
     """Two properties of any Delaunay graph, checked by brute force on the distinct points: each
     point's nearest other point is its neighbour, and the graph is symmetric; an exact copy of
     an earlier point lists that point and is no one's neighbour."""
-    rng = np.random.default_rng(4)
-    distinct = rng.normal(size=(300, 3)) * [1.0, 0.4, 0.05]
-    points = np.concatenate([distinct, distinct[:20]])
-    indptr, indices, cutoff = neighbour_graph(points)
+    points, (indptr, indices, _), d2 = _flat_cloud_with_copies(4)
+    distinct = points[:300]
     assert len(indptr) == len(points) + 1 and np.all(np.diff(indptr) > 0)
     neighbours = [set(indices[indptr[i]:indptr[i + 1]].tolist()) for i in range(len(points))]
-    d2 = ((distinct[:, None] - distinct[None]) ** 2).sum(axis=2)
-    np.fill_diagonal(d2, np.inf)
     for i in range(len(distinct)):
         assert int(d2[i].argmin()) in neighbours[i]
         assert all(i in neighbours[j] for j in neighbours[i])
@@ -234,19 +241,14 @@ def test_the_graph_links_each_point_to_its_nearest_and_copies_to_their_first():
 def test_the_graph_lists_neighbours_nearest_first_with_the_walks_cutoffs():
     """Each point's neighbours come nearest first, the first is its nearest other point (brute
     force), and each cutoff is a quarter of the squared distance to that neighbour, just below."""
-    rng = np.random.default_rng(6)
-    distinct = rng.normal(size=(300, 3)) * [1.0, 0.4, 0.05]
-    points = np.concatenate([distinct, distinct[:20]])
-    indptr, indices, cutoff = neighbour_graph(points)
-    d2 = ((distinct[:, None] - distinct[None]) ** 2).sum(axis=2)
-    np.fill_diagonal(d2, np.inf)
+    points, (indptr, indices, cutoff), d2 = _flat_cloud_with_copies(6)
     for i in range(len(points)):
         listed = indices[indptr[i]:indptr[i + 1]]
         squared = ((points[listed] - points[i]) ** 2).sum(axis=1)
         assert np.all(np.diff(squared) >= 0.0)
         quarter = cutoff[indptr[i]:indptr[i + 1]]
         assert np.all(quarter <= squared / 4.0) and np.allclose(quarter, squared / 4.0, rtol=1e-8, atol=0.0)
-        if i < len(distinct):
+        if i < 300:  # a distinct point
             assert listed[0] == int(d2[i].argmin())
         else:
             assert listed[0] == i - 300 and quarter[0] == 0.0  # a copy: its first copy, at 0
