@@ -46,6 +46,10 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--workers", "-j", type=int, default=1, metavar="W",
                    help="threads that fit, check and repair samples side by side (default 1); the "
                         "sampler then learns each outcome up to 2W-1 samples late")
+    p.add_argument("--fit", action="append", default=[], metavar="KEY=VALUE",
+                   help="a parameter of ISF (isf.FitConfig), e.g. tolerance=0.016 (repeatable; "
+                        "the defaults are the paper's; docs/concepts.md lists them, and what a "
+                        "looser stop rule saves and costs)")
     p.add_argument("--repair", action="append", default=[], metavar="KEY=VALUE",
                    help="a parameter of the collision repair (isf.RepairConfig), e.g. iterations=10 "
                         "(repeatable; docs/hands.md measures its rows)")
@@ -123,7 +127,7 @@ def _one_line(err: Exception) -> str:
 def _cmd_plan(args: argparse.Namespace) -> int:
     from .clearance import RepairConfig
     from .collision import Plane
-    from .config import config_from_text
+    from .config import FitConfig, config_from_text
     from .exceptions import InvalidInputError
     from .gripper_loading import load_gripper
     from .object_specs import open_object
@@ -144,6 +148,7 @@ def _cmd_plan(args: argparse.Namespace) -> int:
                                 "batches or worker threads")
     if args.no_repair and args.repair:
         raise InvalidInputError("--no-repair and --repair exclude each other: drop one")
+    config = config_from_text(FitConfig, _pairs(args.fit, "--fit"))
     repair = False if args.no_repair else (
         config_from_text(RepairConfig, _pairs(args.repair, "--repair")) if args.repair else True)
     gripper = load_gripper(args.gripper)
@@ -154,7 +159,7 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     show = not args.quiet and sys.stderr.isatty()
     progress = _ProgressBar(sys.stderr) if show else None
     result = plan(gripper, obj, samples=args.samples, sampler=sampler, seed=args.seed,
-                  batch_size=args.batch_size, workers=args.workers,
+                  batch_size=args.batch_size, workers=args.workers, config=config,
                   obstacles=obstacles, repair_collisions=repair, progress=progress)
     if progress:
         progress.close()

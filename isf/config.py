@@ -40,7 +40,8 @@ class FitConfig:
         levels: pyramid levels ``L``; level ``l`` keeps ``1/2**l`` of each surface's points.
         max_iterations: ``I0``; level ``l`` runs at most ``I0 / 2**l`` ISF iterations.
         tolerance: ``eps0``; level ``l`` stops when the displacement ratio ``eta`` is
-            within ``1 +- 2**l * eps0``.
+            within ``1 +- 2**l * eps0``. A looser one is faster but leaves more fits
+            colliding (measured in docs/concepts.md).
         delta_e: ``Delta e``, m^2 for 512 pairs (the paper's 1e-5 mm^2); IPFO stops
             when E per pair drops by less than ``delta_e / 512``.
         normal_weight: ``alpha``, metres; 0 turns the normal-alignment term off.

@@ -6,8 +6,10 @@ import subprocess
 import sys
 
 import jsonschema
+import numpy as np
 import pytest
 
+import isf
 from isf.plan_json import SCHEMA_PATH
 
 
@@ -46,26 +48,31 @@ def test_plan_with_worker_threads(tmp_path, schema):
     assert data["stats"]["workers"] == 2 and len(data["grasps"]) == 6
 
 
-def test_plan_with_repair_parameters_gives_the_library_plan(tmp_path, schema):
-    import numpy as np
-
-    import isf
-
+@pytest.mark.parametrize("gripper, seed, flags, key, keyword, config", [
+    ("three-finger", 3, ["--repair", "max_rows=6", "--repair", "iterations=3"], "repair",
+     "repair_collisions", isf.RepairConfig(max_rows=6, iterations=3)),
+    ("paper-parallel", 2, ["--fit", "tolerance=0.016", "--fit", "max_ipfo_iterations=4"], "config",
+     "config", isf.FitConfig(tolerance=0.016, max_ipfo_iterations=4)),
+])
+def test_plan_with_parameters_gives_the_library_plan(tmp_path, schema, gripper, seed, flags, key,
+                                                     keyword, config):
     out = tmp_path / "grasps.json"
-    proc = run("plan", "-g", "three-finger", "-o", "shape:cylinder", "-n", "4", "--seed", "3",
-               "--repair", "max_rows=6", "--repair", "iterations=3", "--out", str(out), "--quiet")
+    proc = run("plan", "-g", gripper, "-o", "shape:cylinder", "-n", "4", "--seed", str(seed), *flags,
+               "--out", str(out), "--quiet")
     assert proc.returncode in (0, 1), proc.stderr
     data = json.loads(out.read_text())
     jsonschema.validate(data, schema)
-    config = isf.RepairConfig(max_rows=6, iterations=3)
-    assert data["repair"] == json.loads(json.dumps(dataclasses.asdict(config)))
+    assert data[key] == json.loads(json.dumps(dataclasses.asdict(config)))
     cylinder = isf.open_object("shape:cylinder")
-    result = isf.plan("three-finger", cylinder, samples=4, seed=3, repair_collisions=config)
+    result = isf.plan(gripper, cylinder, samples=4, seed=seed, **{keyword: config})
     poses = [np.asarray(g.T_object_gripper).tolist() for g in result.grasps]
     assert [g["T_object_gripper"] for g in data["grasps"]] == poses
-    default = isf.plan("three-finger", cylinder, samples=4, seed=3)  # the parameters matter here
+    default = isf.plan(gripper, cylinder, samples=4, seed=seed)  # the parameters matter here
     assert [np.asarray(g.T_object_gripper).tolist() for g in default.grasps] != poses
 
+
+def test_plan_without_repair(tmp_path):
+    out = tmp_path / "grasps.json"
     proc = run("plan", "-g", "paper-parallel", "-o", "shape:cylinder", "-n", "2", "--no-repair",
                "--out", str(out), "--quiet")
     assert proc.returncode in (0, 1), proc.stderr
@@ -102,6 +109,9 @@ def test_plan_with_table_and_units(tmp_path, schema):
         (["--repair", "max_rowz=6"], "max_rowz"),
         (["--repair", "max_rows=six"], "RepairConfig.max_rows takes an integer"),
         (["--repair", "max_rows"], "--repair 'max_rows' must look like NAME=VALUE"),
+        (["--fit", "tolerence=0.016"], "tolerence"),
+        (["--fit", "tolerance=loose"], "FitConfig.tolerance takes a number"),
+        (["--fit", "levels=0"], "FitConfig.levels must be an integer >= 1"),
     ],
 )
 def test_bad_input_is_one_line_exit_2_and_no_file(tmp_path, args, message):
