@@ -63,6 +63,7 @@ if _LATE:  # the variables above came too late for these libraries
 
 import argparse  # noqa: E402
 import ctypes  # noqa: E402
+import dataclasses  # noqa: E402
 import datetime  # noqa: E402
 import hashlib  # noqa: E402
 import importlib  # noqa: E402
@@ -362,6 +363,28 @@ def mean_and_error(differences: Sequence[float]) -> str:
     values = list(differences)
     error = statistics.stdev(values) / len(values) ** 0.5 if len(values) > 1 else float("nan")
     return f"{statistics.fmean(values):+.2f} +- {error:.2f}"
+
+
+def parse_config(parser, text: str, option: str, cls: type):
+    """A parameter dataclass ``cls`` (``isf.FitConfig``, ``isf.RepairConfig``) from
+    ``KEY=VALUE,...`` (:func:`isf.config.config_from_text`); a bad key or value is a parser
+    error that names ``option``."""
+    import isf
+    from isf.config import config_from_text
+
+    words = dict(item.partition("=")[::2] for item in text.split(","))
+    try:
+        return config_from_text(cls, words)
+    except isf.ConfigError as err:
+        parser.error(f"{option}: {err}")
+
+
+def changed_fields(config) -> str:
+    """The fields of ``config`` (a parameter dataclass) that differ from its defaults, as
+    ``KEY=VALUE,...``."""
+    default = type(config)()
+    return ",".join(f"{f.name}={getattr(config, f.name)}" for f in dataclasses.fields(config)
+                    if getattr(config, f.name) != getattr(default, f.name))
 
 
 # --------------------------------------------------------------------------- machine

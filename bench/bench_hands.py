@@ -46,7 +46,6 @@ import numpy as np  # noqa: E402
 
 import isf  # noqa: E402
 from isf import assets  # noqa: E402
-from isf.config import config_from_text  # noqa: E402
 
 SAMPLES = 60
 QUICK_SAMPLES = 15
@@ -206,16 +205,6 @@ def report(rows: list[dict], note: str, args, deadline) -> list[str]:
     return ["### Multi-fingered hands", text, table, *deadline.note(), *failures]
 
 
-def repair_config(parser, text: str, option: str = "--repair") -> isf.RepairConfig:
-    """``isf.RepairConfig`` from ``KEY=VALUE,...`` (:func:`isf.config.config_from_text`); a bad
-    key or value is a parser error that names ``option``."""
-    words = dict(item.partition("=")[::2] for item in text.split(","))
-    try:
-        return config_from_text(isf.RepairConfig, words)
-    except isf.ConfigError as err:
-        parser.error(f"{option}: {err}")
-
-
 def main() -> None:
     parser = _common.base_parser(__doc__.splitlines()[0], repeats=5, budget=60.0)
     parser.add_argument("--hands", default="three-finger,allegro-right",
@@ -241,7 +230,7 @@ def main() -> None:
     except ValueError as err:
         parser.error(f"--modes: {err}")
     if args.repair is not None:
-        args.repair = repair_config(parser, args.repair)
+        args.repair = _common.parse_config(parser, args.repair, "--repair", isf.RepairConfig)
     if args.quick:
         args.repeats, args.objects = min(args.repeats, 1), 1
         args.samples = min(args.samples, QUICK_SAMPLES)

@@ -170,9 +170,8 @@ def main() -> None:
                              "default: its defaults)")
     args = parser.parse_args()
     if args.collect:
-        import bench_hands
-
-        repair = None if args.repair is None else bench_hands.repair_config(parser, args.repair)
+        repair = None if args.repair is None else _common.parse_config(
+            parser, args.repair, "--repair", isf.RepairConfig)
         collect(args.corpus, args.corpus_name, repair)
     else:
         replay(args.corpus, 1 if args.quick else args.repeats)

@@ -14,11 +14,13 @@ configuration stops repeating once its runs took ``--budget`` seconds (at least 
 tables show how many runs each median has. The growth ratio is t_total(200k) / t_total(2k).
 ``--batch-size`` sets ``isf.plan``'s ``batch_size`` (default: its default; 1 = the paper's
 sequential loop); ``--workers N`` plans on N worker threads (``isf.plan(..., workers=N)``) and
-lets the process run on N CPUs. ``--quick``: 2k and 10k points, 15 samples, one run each.
+lets the process run on N CPUs; ``--fit KEY=VALUE,...`` plans with those ISF parameters
+(``isf.FitConfig``; default the paper's). ``--quick``: 2k and 10k points, 15 samples, one run
+each.
 
 Run from the repository root:
     python bench/bench_scaling.py [--quick] [--repeats 3] [--budget 20] [--batch-size 1] [--workers 2]
-                                  [--sizes 2000,200000] [--sample-counts 60]
+                                  [--sizes 2000,200000] [--sample-counts 60] [--fit tolerance=0.024]
 """
 
 from __future__ import annotations
@@ -67,6 +69,7 @@ def measure(gripper, obj, samples: int, args) -> dict:
     spacing = float(args.working_spacing) if spacing is None and args.working_spacing != "none" \
         else spacing
     runs, failed = _common.run_repeats(lambda seed: _common.plan_once(gripper, obj, samples, seed,
+                                                                      config=args.fit,
                                                                       batch_size=args.batch_size,
                                                                       workers=args.workers,
                                                                       working_spacing=spacing),
@@ -162,7 +165,12 @@ def main() -> None:
     parser.add_argument("--sample-counts", default=None,
                         help="comma-separated sample counts of the samples sweep (default "
                              + ",".join(map(str, SAMPLES)) + ")")
+    parser.add_argument("--fit", default=None, metavar="KEY=VALUE,...",
+                        help="plan with isf.FitConfig(KEY=VALUE, ...) instead of the paper's "
+                             "parameters, e.g. tolerance=0.024")
     args = parser.parse_args()
+    if args.fit is not None:
+        args.fit = _common.parse_config(parser, args.fit, "--fit", isf.FitConfig)
     sizes, sample_counts = (QUICK_SIZES, QUICK_SAMPLES) if args.quick else (SIZES, SAMPLES)
     try:
         sizes = tuple(int(n) for n in args.sizes.split(",")) if args.sizes else sizes
@@ -197,10 +205,12 @@ def main() -> None:
     by_size = [(*loaded(n), results.get((n, base_samples))) for n in sizes]
     by_samples = [(k, results.get((BASE_SIZE, k))) for k in sample_counts]
     base_n, largest_n = loaded(BASE_SIZE)[0], loaded(max(sizes))[0]
+    fit_note = "the paper's" if args.fit is None else f"`{_common.changed_fields(args.fit)}`"
     note = (f"Gripper `{GRIPPER}`, object: {OBJECT} scaled to a "
             f"{_common.PAPER_GRIPPER_MIDDLE_EXTENT * 1e3:g} mm middle extent, regret sampler, "
             f"batch size {args.batch_size}, {args.workers} worker thread(s) on as many CPUs, "
             f"working_spacing {args.working_spacing}, "
+            f"ISF parameters: {fit_note}, "
             f"seeds 0..n-1, up to {args.repeats} runs per "
             f"configuration (budget "
             f"{args.budget:g} s). CPU time: process time around `isf.plan` (wall time minus "

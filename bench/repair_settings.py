@@ -1,7 +1,10 @@
-"""Collision-repair settings compared: on the same colliding fits, and in whole plans.
+"""Collision-repair settings compared: on the same colliding fits, and in whole plans (where
+ISF settings can be compared too).
 
-Each ``--setting NAME:KEY=VALUE,...`` is an ``isf.RepairConfig`` (its other fields default);
-the default ``RepairConfig()`` is always compared too, as ``default``. Two commands:
+Each ``--setting NAME:KEY=VALUE,...`` is an ``isf.RepairConfig`` (its other fields default),
+each ``--fit-setting NAME:KEY=VALUE,...`` (``plans`` only) an ``isf.FitConfig``; a NAME given
+to both plans with both. The defaults (``RepairConfig()``, ``FitConfig()``: the paper's ISF
+parameters) are always compared too, as ``default``. Two commands:
 
 * ``corpus CORPUS.pkl``: the fits of a corpus (``bench/bench_repair.py --collect``) repaired
   with every setting and re-checked by the planner's collision checker
@@ -15,21 +18,23 @@ the default ``RepairConfig()`` is always compared too, as ``default``. Two comma
 * ``plans``: 60-sample plans of one gripper (``--gripper paper`` on the objects of
   ``table1.py`` scaled to it, ``three`` or ``allegro`` on the YCB objects of
   ``bench_hands.py``), ``--objects N`` of them, seeds ``--seeds``, every setting on the same
-  (object, seed) pairs in turn, one thread: collision-free and valid grasps per plan and the
-  paired difference to the default (mean and standard error, the pairs higher and lower), the
-  mean fit error of the collision-free grasps that touch the object and the CPU time per
-  plan; ``--on-table`` puts each object on a table (a plane through its lowest point).
+  (object, seed) pairs in turn, one thread: collision-free and valid grasps per plan and their
+  paired differences to the default (mean and standard error, the pairs higher and lower), the
+  mean fit error of the collision-free grasps that touch the object and its paired difference,
+  the ISF iterations per sample and the CPU time per plan; ``--on-table`` puts each object on
+  a table (a plane through its lowest point).
 
 Run from the repository root, e.g.::
 
     python bench/repair_settings.py corpus /tmp/corpus.pkl --setting old:max_rows=12,activation=0.008
     python bench/repair_settings.py plans --gripper three --objects 2 --seeds 0-7 \
         --setting old:max_rows=12,activation=0.008
+    python bench/repair_settings.py plans --gripper paper --objects 6 --seeds 0-7 \
+        --fit-setting loose:tolerance=0.016
 """
 
 from __future__ import annotations
 
-import dataclasses
 import tempfile
 import time
 from pathlib import Path
@@ -49,22 +54,17 @@ from isf.lockstep import score_fit
 from isf.result import FitStatus
 
 
-def settings(parser, texts: list[str]) -> dict[str, isf.RepairConfig]:
-    """``{"default": RepairConfig(), NAME: RepairConfig(...), ...}`` from ``NAME:KEY=VALUE,...``."""
-    out = {"default": isf.RepairConfig()}
+def settings(parser, texts: list[str], cls: type = isf.RepairConfig,
+             option: str = "--setting") -> dict:
+    """``{"default": cls(), NAME: cls(...), ...}`` from ``NAME:KEY=VALUE,...`` (``cls``:
+    ``isf.RepairConfig`` or ``isf.FitConfig``)."""
+    out = {"default": cls()}
     for text in texts:
         name, _, fields = text.partition(":")
         if not name or not fields or name in out:
-            parser.error(f"--setting {text!r} must look like NAME:KEY=VALUE,... with a new NAME")
-        out[name] = bench_hands.repair_config(parser, fields, f"--setting {name}")
+            parser.error(f"{option} {text!r} must look like NAME:KEY=VALUE,... with a new NAME")
+        out[name] = _common.parse_config(parser, fields, f"{option} {name}", cls)
     return out
-
-
-def changed(config: isf.RepairConfig) -> str:
-    """The fields of ``config`` that differ from the default, as ``KEY=VALUE,...``."""
-    default = isf.RepairConfig()
-    return ",".join(f"{f.name}={getattr(config, f.name)}" for f in dataclasses.fields(config)
-                    if getattr(config, f.name) != getattr(default, f.name))
 
 
 def opposed_normals(repairer: clearance.ClearanceRepair) -> list[float]:
@@ -185,40 +185,49 @@ def seed_list(parser, text: str) -> list[int]:
 
 
 def plans_report(gripper_name: str, count: int, seeds: list[int],
-                 configs: dict[str, isf.RepairConfig], on_table: bool = False):
-    """The table of the ``plans`` command; ``on_table``: each object rests on a table (a plane
-    through its lowest point, normal +z), which every link must also keep clear of."""
+                 configs: dict[str, tuple[isf.FitConfig, isf.RepairConfig]], on_table: bool = False):
+    """The table of the ``plans`` command (``configs``: per setting, its ISF and repair
+    parameters); ``on_table``: each object rests on a table (a plane through its lowest point,
+    normal +z), which every link must also keep clear of."""
     warm_up()
     gripper, objects = plan_objects(gripper_name, count)
-    for config in configs.values():  # the repairers' caches, once
-        isf.plan(gripper, objects[0], samples=3, seed=99, repair_collisions=config)
+    for fit, repair in configs.values():  # the repairers' caches, once
+        isf.plan(gripper, objects[0], samples=3, seed=99, config=fit, repair_collisions=repair)
     runs = {name: [] for name in configs}
     for obj in objects:
         table = [Plane.table(float(obj.points[:, 2].min()))] if on_table else []
         for seed in seeds:
-            for name, config in configs.items():
+            for name, (fit, repair) in configs.items():
                 start = time.process_time()
-                result = isf.plan(gripper, obj, samples=60, seed=seed, repair_collisions=config,
-                                  obstacles=table)
+                result = isf.plan(gripper, obj, samples=60, seed=seed, config=fit,
+                                  repair_collisions=repair, obstacles=table)
                 cpu = time.process_time() - start
                 free = [g for g in result.grasps if g.collision_free]
                 touching = [g.fit.mean_distance for g in free if np.isfinite(g.fit.mean_distance)]
                 error = np.mean(touching) if touching else np.nan
-                runs[name].append((len(free), sum(g.valid for g in result.grasps), error, cpu))
+                iterations = np.mean([g.fit.iterations for g in result.grasps])
+                runs[name].append((len(free), sum(g.valid for g in result.grasps), error, cpu,
+                                   iterations))
     base = np.array(runs["default"])
     rows = []
     for name, values in runs.items():
         a = np.array(values)
-        d = a[:, 0] - base[:, 0]
+        d, d_valid, d_error = a[:, 0] - base[:, 0], a[:, 1] - base[:, 1], 1e3 * (a[:, 2] - base[:, 2])
         rows.append([name, len(a), _common.fmt(a[:, 0].mean()), _common.mean_and_error(d),
                      f"{(d > 0).sum()} / {(d < 0).sum()}",
-                     _common.fmt(a[:, 1].mean()), _common.fmt(1e3 * np.nanmean(a[:, 2])),
+                     _common.fmt(a[:, 1].mean()), _common.mean_and_error(d_valid),
+                     _common.fmt(1e3 * np.nanmean(a[:, 2])),
+                     _common.mean_and_error(d_error[np.isfinite(d_error)]),
+                     _common.fmt(a[:, 4].mean()),
                      _common.fmt(np.median(a[:, 3])), _common.fmt(np.median(a[:, 3] / base[:, 3]))])
     return [(f"#### {gripper_name}: {count} objects x seeds {seeds[0]}..{seeds[-1]}, "
              f"60 samples, one thread{', on a table' if on_table else ''}"),
             _common.markdown_table(["setting", "plans", "collision-free per plan",
                                     "difference to default (mean +- s.e.)", "pairs higher / lower",
-                                    "valid per plan", "mean fit error of collision-free (mm)",
+                                    "valid per plan", "valid: difference to default",
+                                    "mean fit error of collision-free (mm)",
+                                    "fit error: difference to default (mm; plans with one)",
+                                    "ISF iterations per sample",
                                     "CPU s per plan (median)",
                                     "CPU time, setting / default (median of pairs)"], rows)]
 
@@ -229,6 +238,10 @@ def main() -> None:
     parser.add_argument("corpus", nargs="?", help="corpus: the corpus file")
     parser.add_argument("--setting", action="append", default=[],
                         metavar="NAME:KEY=VALUE,...", help="a repair setting (repeatable)")
+    parser.add_argument("--fit-setting", action="append", default=[],
+                        metavar="NAME:KEY=VALUE,...",
+                        help="plans: an ISF setting (isf.FitConfig; repeatable); a NAME also "
+                             "given to --setting plans with both")
     parser.add_argument("--gripper", choices=("paper", "three", "allegro"), default="paper",
                         help="plans: the gripper (default paper)")
     parser.add_argument("--objects", type=int, default=2, help="plans: objects (default 2)")
@@ -236,19 +249,25 @@ def main() -> None:
     parser.add_argument("--on-table", action="store_true",
                         help="plans: each object rests on a table the gripper must keep clear of")
     args = parser.parse_args()
-    configs = settings(parser, args.setting)
+    repairs = settings(parser, args.setting)
+    fits = settings(parser, args.fit_setting, isf.FitConfig, "--fit-setting")
+    configs = {name: (fits.get(name, isf.FitConfig()), repairs.get(name, isf.RepairConfig()))
+               for name in dict.fromkeys([*repairs, *fits])}
     started, header = time.perf_counter(), _common.machine_description()
     if args.command == "corpus":
         if args.corpus is None:
             parser.error("corpus: give the corpus file (bench/bench_repair.py --collect FILE)")
-        sections = corpus_report(args.corpus, configs, args.quick)
+        if args.fit_setting:
+            parser.error("--fit-setting applies to plans: the corpus holds fits made already")
+        sections = corpus_report(args.corpus, repairs, args.quick)
     else:
         seeds = seed_list(parser, args.seeds)
         sections = plans_report(args.gripper, 1 if args.quick else args.objects,
                                 seeds[:1] if args.quick else seeds, configs, args.on_table)
-    _common.finish("repair_settings: collision-repair settings compared", [
-        "Settings (fields that differ from `RepairConfig()`): " + "; ".join(
-            f"`{name}`: {changed(config) or 'the default'}" for name, config in configs.items()),
+    _common.finish("repair_settings: collision-repair and ISF settings compared", [
+        "Settings (fields that differ from `FitConfig()` and `RepairConfig()`): " + "; ".join(
+            f"`{name}`: {', '.join(filter(None, map(_common.changed_fields, pair))) or 'the default'}"
+            for name, pair in configs.items()),
         *sections], started, header, args.out)
 
 
