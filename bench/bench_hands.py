@@ -21,15 +21,15 @@ time per collision-free grasp; medians over ``--repeats`` runs (seeds 0, 1, ...)
 ``--modes`` lists how ``isf.plan`` runs the samples, one row each (default ``w2,1``: one at a
 time on two worker threads, ``workers=2``, the process then allowed two CPUs; and 1, the paper's
 sequential loop, ``isf.plan``'s default); the last mode is the reference of the speed-up column; ``--objects N`` runs the first N objects only; ``--quick``: one object, 15
-samples, one run. ``--finger-damping`` sets ``FitConfig.finger_damping`` for both hands (a
-diagnostic: the default config's finger QP may fail to converge on a 16-joint hand; the run then
-reports the failures). ``--repair KEY=VALUE,...`` plans with ``isf.RepairConfig(KEY=VALUE, ...)``
+samples, one run. ``--fit KEY=VALUE,...`` plans both hands with ``isf.FitConfig(KEY=VALUE, ...)``
+instead of the paper's parameters (e.g. ``finger_damping=1e-6``, a diagnostic for finger QPs
+that fail to converge on a 16-joint hand, or ``tolerance=0.024``). ``--repair KEY=VALUE,...`` plans with ``isf.RepairConfig(KEY=VALUE, ...)``
 instead of the default repair (e.g. ``max_rows=12,activation=0.008``, the old default that
 docs/hands.md measures).
 
 Run from the repository root:
     python bench/bench_hands.py [--quick] [--repeats 3] [--budget 20] [--hands allegro-right]
-                                [--objects 1] [--modes w2,1] [--finger-damping 1e-6]
+                                [--objects 1] [--modes w2,1] [--fit finger_damping=1e-6]
                                 [--repair max_rows=12,activation=0.008]
 """
 
@@ -145,8 +145,7 @@ def load_objects(count: int) -> tuple[list[isf.ObjectSurface], str]:
 
 
 def bench(hand: str, gripper, obj, mode: _common.Mode, args) -> dict:
-    config = None if args.finger_damping is None else isf.FitConfig(
-        finger_damping=args.finger_damping)
+    config = args.fit
     _common.use_cpus(mode.workers)
     runs, failed = _common.run_repeats(
         lambda seed: _common.plan_once(gripper, obj, args.samples, seed, config,
@@ -189,8 +188,8 @@ def report(rows: list[dict], note: str, args, deadline) -> list[str]:
          "CPU time (s)", "ms per collision-free",
          "ISF and repair / collision time (s), summed over threads", "ISF iterations per sample",
          f"t_total({args.modes[-1].label}) / t_total", "target t_total (s)", "met?"], body)
-    damping = ("the default `FitConfig`" if args.finger_damping is None else
-               f"`FitConfig(finger_damping={args.finger_damping:g})` (NOT the default)")
+    damping = ("the default `FitConfig`" if args.fit is None else
+               f"`{_common.changed_fields(args.fit)}` (NOT the default `FitConfig`)")
     repair = ("the default repair" if args.repair is None else
               f"`{args.repair}` (NOT the default repair)")
     text = (f"{args.samples} samples, regret sampler, modes "
@@ -209,9 +208,10 @@ def main() -> None:
     parser = _common.base_parser(__doc__.splitlines()[0], repeats=5, budget=60.0)
     parser.add_argument("--hands", default="three-finger,allegro-right",
                         help="comma-separated hands to run (default: both)")
-    parser.add_argument("--finger-damping", type=float, default=None,
-                        help="FitConfig.finger_damping for both hands (default: FitConfig's); a "
-                             "diagnostic for finger QPs that fail to converge")
+    parser.add_argument("--fit", default=None, metavar="KEY=VALUE,...",
+                        help="plan with isf.FitConfig(KEY=VALUE, ...) instead of the paper's "
+                             "parameters, e.g. finger_damping=1e-6 (a diagnostic for finger QPs "
+                             "that fail to converge) or tolerance=0.024")
     parser.add_argument("--repair", default=None, metavar="KEY=VALUE,...",
                         help="plan with isf.RepairConfig(KEY=VALUE, ...) instead of the default "
                              "repair, e.g. max_rows=12,activation=0.008")
@@ -229,6 +229,8 @@ def main() -> None:
         args.modes = [_common.Mode.parse(m) for m in args.modes.split(",")]
     except ValueError as err:
         parser.error(f"--modes: {err}")
+    if args.fit is not None:
+        args.fit = _common.parse_config(parser, args.fit, "--fit", isf.FitConfig)
     if args.repair is not None:
         args.repair = _common.parse_config(parser, args.repair, "--repair", isf.RepairConfig)
     if args.quick:
