@@ -359,8 +359,10 @@ def fmt(value: float, digits: int = 3) -> str:
 
 def mean_and_error(differences: Sequence[float]) -> str:
     """Paired differences as ``"+M.MM +- E.EE"``: their mean and its standard error (``nan``
-    for a single pair)."""
+    for a single pair; ``"-"`` for none)."""
     values = list(differences)
+    if not values:
+        return "-"
     error = statistics.stdev(values) / len(values) ** 0.5 if len(values) > 1 else float("nan")
     return f"{statistics.fmean(values):+.2f} +- {error:.2f}"
 
