@@ -21,10 +21,11 @@ time per collision-free grasp; medians over ``--repeats`` runs (seeds 0, 1, ...)
 ``--modes`` lists how ``isf.plan`` runs the samples, one row each (default ``w2,1``: one at a
 time on two worker threads, ``workers=2``, the process then allowed two CPUs; and 1, the paper's
 sequential loop, ``isf.plan``'s default); the last mode is the reference of the speed-up column; ``--objects N`` runs the first N objects only; ``--quick``: one object, 15
-samples, one run. ``--fit KEY=VALUE,...`` plans both hands with ``isf.FitConfig(KEY=VALUE, ...)``
-instead of the paper's parameters (e.g. ``finger_damping=1e-6``, a diagnostic for finger QPs
-that fail to converge on a 16-joint hand, or ``tolerance=0.024``). ``--repair KEY=VALUE,...`` plans with ``isf.RepairConfig(KEY=VALUE, ...)``
-instead of the default repair (e.g. ``max_rows=12,activation=0.008``, the old default that
+samples, one run. ``--fit KEY=VALUE,...`` plans both hands with
+``isf.FitConfig(KEY=VALUE, ...)`` instead of the paper's parameters (e.g.
+``finger_damping=1e-6``, a diagnostic for finger QPs that fail to converge on a 16-joint hand,
+or ``tolerance=0.024``). ``--repair KEY=VALUE,...`` plans with
+``isf.RepairConfig(KEY=VALUE, ...)`` instead of the default repair (e.g. ``max_rows=12,activation=0.008``, the old default that
 docs/hands.md measures).
 
 Run from the repository root:
@@ -145,10 +146,9 @@ def load_objects(count: int) -> tuple[list[isf.ObjectSurface], str]:
 
 
 def bench(hand: str, gripper, obj, mode: _common.Mode, args) -> dict:
-    config = args.fit
     _common.use_cpus(mode.workers)
     runs, failed = _common.run_repeats(
-        lambda seed: _common.plan_once(gripper, obj, args.samples, seed, config,
+        lambda seed: _common.plan_once(gripper, obj, args.samples, seed, args.fit,
                                        batch_size=mode.batch_size, workers=mode.workers,
                                        repair_collisions=args.repair),
         args.repeats, _common.budget_or_none(args), catch=(isf.ISFError,))
@@ -188,13 +188,13 @@ def report(rows: list[dict], note: str, args, deadline) -> list[str]:
          "CPU time (s)", "ms per collision-free",
          "ISF and repair / collision time (s), summed over threads", "ISF iterations per sample",
          f"t_total({args.modes[-1].label}) / t_total", "target t_total (s)", "met?"], body)
-    damping = ("the default `FitConfig`" if args.fit is None else
-               f"`{_common.changed_fields(args.fit)}` (NOT the default `FitConfig`)")
+    fit = ("the default `FitConfig`" if args.fit is None else
+           f"`{_common.changed_fields(args.fit)}` (NOT the default `FitConfig`)")
     repair = ("the default repair" if args.repair is None else
               f"`{args.repair}` (NOT the default repair)")
     text = (f"{args.samples} samples, regret sampler, modes "
             f"{', '.join(m.label for m in args.modes)} (B: samples in lockstep in one thread, W: "
-            f"worker threads on as many CPUs), {damping}, {repair}, "
+            f"worker threads on as many CPUs), {fit}, {repair}, "
             f"objects: {note}, at most "
             f"{MAX_POINTS} points; "
             f"up to {args.repeats} runs per row (budget {args.budget:g} s). CPU time: process "
