@@ -1,8 +1,8 @@
 """The ``isf`` command line: ``plan``, ``grippers``, ``samplers``, ``tag``, ``inspect``.
 
 Exit codes: 0 success, 1 a gripper with problems (``inspect``, ``tag``) or a
-plan that found no collision-free grasp, 2 a usage or input error (one line on stderr,
-no traceback, no output file written).
+plan that found no collision-free grasp (of any of the objects planned), 2 a usage or input
+error (one line on stderr, no traceback, no output file written).
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ import threading
 from pathlib import Path
 
 from . import __version__
-from .exceptions import ISFError
+from .exceptions import InvalidInputError, ISFError
 from .planner import BATCH_SIZE
 
 __all__ = ["main"]
@@ -34,10 +34,14 @@ def _parser() -> argparse.ArgumentParser:
     p = sub.add_parser("plan", help="plan grasps of an object", description=(
         "Plan grasps of OBJECT with GRIPPER and write them as JSON. GRIPPER is a bundled name "
         "(see 'isf grippers') or a tagged URDF; OBJECT is a mesh or point-cloud file, "
-        "shape:NAME (cylinder, box, sphere, capsule, torus) or asset:NAME (e.g. asset:bunny)."))
+        "shape:NAME (cylinder, box, sphere, capsule, torus) or asset:NAME (e.g. asset:bunny). "
+        "Several --object plan one after the other in one run, with the same parameters, and "
+        "write one JSON each into --out-dir: the run starts up once (loading isf and its "
+        "compiled kernels takes seconds, longer than a plan)."))
     p.add_argument("--gripper", "-g", required=True, help="bundled gripper name or URDF path")
-    p.add_argument("--object", "-o", required=True, dest="object_spec",
-                   help="mesh/cloud file, shape:NAME or asset:NAME")
+    p.add_argument("--object", "-o", required=True, action="append", dest="object_specs",
+                   metavar="OBJECT",
+                   help="mesh/cloud file, shape:NAME or asset:NAME (repeatable, with --out-dir)")
     p.add_argument("--samples", "-n", type=int, default=60, help="samples to evaluate (default 60)")
     p.add_argument("--sampler", "-s", default="regret", help="sampler name (default regret; see 'isf samplers')")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
@@ -60,7 +64,11 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--table", type=float, default=None, metavar="Z",
                    help="a table plane at height Z (object frame, metres): grasps below it are rejected")
     p.add_argument("--top", type=int, default=None, metavar="K", help="keep only the best K grasps in the output")
-    p.add_argument("--out", default="grasps.json", help="output JSON file (default grasps.json)")
+    p.add_argument("--out", default=None,
+                   help="output JSON file of one object (default grasps.json)")
+    p.add_argument("--out-dir", default=None, metavar="DIR",
+                   help="write one JSON per object into DIR (created if missing), named after "
+                        "the object: part.json for part.stl, cylinder.json for shape:cylinder")
     p.add_argument("--quiet", "-q", action="store_true", help="no progress bar and no table")
     p.set_defaults(run=_cmd_plan)
 
@@ -128,19 +136,17 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     from .clearance import RepairConfig
     from .collision import Plane
     from .config import FitConfig, config_from_text
-    from .exceptions import InvalidInputError
     from .gripper_loading import load_gripper
     from .object_specs import open_object
     from .plan_json import write_plan_json
     from .planner import plan
     from .samplers import get_sampler
 
-    out = Path(args.out)
-    if not out.parent.is_dir():
-        raise InvalidInputError(f"output folder {out.parent} does not exist: create it or pass another --out")
+    outputs = _output_paths(args.object_specs, args.out, args.out_dir)
     if args.top is not None and args.top < 1:
         raise InvalidInputError(f"--top must be >= 1, got {args.top}")
-    for flag, value in (("--batch-size", args.batch_size), ("--workers", args.workers)):
+    for flag, value in (("--samples", args.samples), ("--batch-size", args.batch_size),
+                        ("--workers", args.workers)):
         if value < 1:
             raise InvalidInputError(f"{flag} must be >= 1, got {value}")
     if args.batch_size > 1 and args.workers > 1:
@@ -152,25 +158,81 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     repair = False if args.no_repair else (
         config_from_text(RepairConfig, _pairs(args.repair, "--repair")) if args.repair else True)
     gripper = load_gripper(args.gripper)
-    obj = open_object(args.object_spec, units=args.units, scale=args.scale)
+    # every object loads before any plan: a bad one fails the run before it writes anything
+    objects = [open_object(spec, units=args.units, scale=args.scale) for spec in args.object_specs]
     obstacles = [Plane.table(args.table)] if args.table is not None else []
     sampler = get_sampler(args.sampler)  # a bad name fails before the kernels load
     _compile_kernels(quiet=args.quiet)
     show = not args.quiet and sys.stderr.isatty()
-    progress = _ProgressBar(sys.stderr) if show else None
-    result = plan(gripper, obj, samples=args.samples, sampler=sampler, seed=args.seed,
-                  batch_size=args.batch_size, workers=args.workers, config=config,
-                  obstacles=obstacles, repair_collisions=repair, progress=progress)
-    if progress:
-        progress.close()
-    write_plan_json(result, out, top=args.top)
-    if not args.quiet:
-        print(_summary(result, args.top or 10))
-    s = result.stats
-    print(f"{s.collision_free}/{s.samples} collision-free grasps in {s.total_time:.2f} s; "
-          f"wrote {len(result.grasps) if args.top is None else min(args.top, len(result.grasps))} "
-          f"grasps to {out.resolve()}")
-    return EXIT_OK if s.collision_free else EXIT_NOTHING_FOUND
+    found_everywhere = True
+    for spec, obj, out in zip(args.object_specs, objects, outputs):
+        progress = _ProgressBar(sys.stderr) if show else None
+        try:
+            result = plan(gripper, obj, samples=args.samples, sampler=sampler, seed=args.seed,
+                          batch_size=args.batch_size, workers=args.workers, config=config,
+                          obstacles=obstacles, repair_collisions=repair, progress=progress)
+        except ISFError as err:
+            if len(objects) == 1:
+                raise
+            raise ISFError(f"planning {spec} failed ({_one_line(err)}); the files written "
+                           "before it are complete") from err
+        finally:
+            if progress:
+                progress.close()
+        out.parent.mkdir(exist_ok=True)  # --out-dir: made once there is a plan to write
+        write_plan_json(result, out, top=args.top)
+        if not args.quiet:
+            print(_summary(result, args.top or 10))
+        s = result.stats
+        written = len(result.grasps) if args.top is None else min(args.top, len(result.grasps))
+        print(f"{s.collision_free}/{s.samples} collision-free grasps in {s.total_time:.2f} s; "
+              f"wrote {written} grasps to {out.resolve()}", flush=True)
+        found_everywhere = found_everywhere and s.collision_free > 0
+    return EXIT_OK if found_everywhere else EXIT_NOTHING_FOUND
+
+
+def _output_paths(specs: list[str], out: str | None, out_dir: str | None) -> list[Path]:
+    """The JSON file of each object spec: ``out`` (default ``grasps.json``) for one object, else
+    ``out_dir/<name>.json`` (:func:`_output_name`).
+
+    Raises:
+        InvalidInputError: both or, for several objects, neither of ``out`` and ``out_dir``;
+            a missing folder above them; two objects with the same output name.
+    """
+    if out is not None and out_dir is not None:
+        raise InvalidInputError("--out and --out-dir exclude each other: --out names the file of "
+                                "one object, --out-dir a folder for one file per object")
+    if out_dir is None:
+        if len(specs) > 1:
+            raise InvalidInputError(f"{len(specs)} objects need --out-dir DIR (one JSON per "
+                                    "object); --out names the file of one object")
+        path = Path(out or "grasps.json")
+        if not path.parent.is_dir():
+            raise InvalidInputError(f"output folder {path.parent} does not exist: create it or "
+                                    "pass another --out")
+        return [path]
+    folder = Path(out_dir)
+    if not folder.parent.is_dir() or (folder.exists() and not folder.is_dir()):
+        raise InvalidInputError(f"--out-dir {folder} cannot be a folder (its parent is missing "
+                                "or it is a file): pass another --out-dir")
+    seen: dict[str, str] = {}
+    for spec in specs:
+        name = _output_name(spec)
+        if name in seen:
+            raise InvalidInputError(f"objects {seen[name]!r} and {spec!r} would both write "
+                                    f"{folder / name}: plan them in separate runs or rename a file")
+        seen[name] = spec
+    return [folder / name for name in seen]
+
+
+def _output_name(spec: str) -> str:
+    """The JSON file name of an object spec: a file's stem (``part.stl`` -> ``part.json``), or
+    the name after ``shape:`` / ``asset:`` with ``:`` and ``/`` turned into ``-``
+    (``asset:ycb:Banana`` -> ``ycb-Banana.json``)."""
+    for prefix in ("shape:", "asset:"):
+        if spec.startswith(prefix):
+            return spec.removeprefix(prefix).replace(":", "-").replace("/", "-") + ".json"
+    return Path(spec).stem + ".json"
 
 
 def _compile_kernels(quiet: bool) -> None:

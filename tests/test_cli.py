@@ -105,6 +105,7 @@ def test_plan_with_table_and_units(tmp_path, schema):
         (["--object", "shape:no-such-shape"], "no-such-shape"),
         (["--object", "box_mm.stl"], "units"),
         (["--workers", "0"], "--workers"),
+        (["--samples", "0"], "--samples must be >= 1"),
         (["--workers", "2", "--batch-size", "2"], "--workers"),
         (["--repair", "max_rowz=6"], "max_rowz"),
         (["--repair", "max_rows=six"], "RepairConfig.max_rows takes an integer"),
@@ -119,16 +120,54 @@ def test_bad_input_is_one_line_exit_2_and_no_file(tmp_path, args, message):
     import trimesh
 
     trimesh.creation.box(extents=[50, 20, 15]).export(tmp_path / "box_mm.stl")
-    base = {"--gripper": "paper-parallel", "--object": "shape:cylinder", "--sampler": "regret"}
+    base = {"--gripper": "paper-parallel", "--object": "shape:cylinder", "--sampler": "regret",
+            "--samples": "2"}
     base.update(dict(zip(args[::2], args[1::2])))
     flat = [x for kv in base.items() for x in kv]
-    proc = run("plan", *flat, "-n", "2", "--out", "out.json", cwd=tmp_path)
+    proc = run("plan", *flat, "--out", "out.json", cwd=tmp_path)
+    assert_one_line_error(proc, message)
+    assert not (tmp_path / "out.json").exists()
+
+
+def assert_one_line_error(proc, message):
+    """The command failed with exit code 2 and one line on stderr that names ``message``."""
     assert proc.returncode == 2
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("isf: error:"), proc.stderr
     assert message in lines[0]
     assert "Traceback" not in proc.stderr
-    assert not (tmp_path / "out.json").exists()
+
+
+def test_plan_of_several_objects_gives_each_library_plan(tmp_path, schema):
+    specs = ["shape:cylinder", "shape:box"]
+    proc = run("plan", "-g", "paper-parallel", "-o", specs[0], "-o", specs[1], "-n", "4",
+               "--seed", "1", "--out-dir", str(tmp_path / "plans"), "--quiet")
+    assert proc.returncode == 0, proc.stderr
+    assert sorted(p.name for p in (tmp_path / "plans").iterdir()) == ["box.json", "cylinder.json"]
+    for spec in specs:
+        data = json.loads((tmp_path / "plans" / f"{spec.removeprefix('shape:')}.json").read_text())
+        jsonschema.validate(data, schema)
+        assert data["object"] == spec
+        result = isf.plan("paper-parallel", isf.open_object(spec), samples=4, seed=1)
+        assert [g["T_object_gripper"] for g in data["grasps"]] == [
+            np.asarray(g.T_object_gripper).tolist() for g in result.grasps]
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["-o", "shape:box", "--out", "out.json"], "2 objects need --out-dir DIR"),
+        (["-o", "sub/cylinder.stl", "--out-dir", "plans"], "would both write plans/cylinder.json"),
+        (["-o", "missing.stl", "--out-dir", "plans"], "missing.stl"),
+        (["--out", "out.json", "--out-dir", "plans"], "--out and --out-dir exclude each other"),
+        (["--out-dir", "no-such-folder/plans"], "no-such-folder/plans"),
+    ],
+)
+def test_bad_output_for_several_objects_is_one_line_exit_2_and_no_file(tmp_path, args, message):
+    proc = run("plan", "-g", "paper-parallel", "-o", "shape:cylinder", *args, "-n", "2",
+               cwd=tmp_path)
+    assert_one_line_error(proc, message)
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_listing_commands():
