@@ -151,8 +151,9 @@ def _bvh(vertices: np.ndarray, faces: np.ndarray) -> coal.BVHModelOBBRSS:
 
 
 def object_bvh(obj: ObjectSurface) -> coal.BVHModelOBBRSS:
-    """The coal BVH of a mesh object's triangles, built once per mesh (0.7 s for the 85k
-    triangles of the benchmark bunny; see :func:`isf.collision_surface.mesh_memo`)."""
+    """The coal BVH of a mesh object's triangles, built once per mesh (0.27-0.33 s for the 85k
+    triangles of the benchmark bunny, ``docs/benchmarks.md``; see
+    :func:`isf.collision_surface.mesh_memo`)."""
     memo = mesh_memo(obj)
     if "bvh" not in memo:
         memo["bvh"] = _bvh(np.asarray(obj.mesh_vertices, float), np.asarray(obj.mesh_faces, np.int64))
