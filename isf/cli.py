@@ -137,7 +137,7 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     from .collision import Plane
     from .config import FitConfig, config_from_text
     from .gripper_loading import load_gripper
-    from .object_specs import open_object
+    from .object_specs import check_object_spec, open_object
     from .plan_json import write_plan_json
     from .planner import plan
     from .samplers import get_sampler
@@ -158,24 +158,29 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     repair = False if args.no_repair else (
         config_from_text(RepairConfig, _pairs(args.repair, "--repair")) if args.repair else True)
     gripper = load_gripper(args.gripper)
-    # every object loads before any plan: a bad one fails the run before it writes anything
-    objects = [open_object(spec, units=args.units, scale=args.scale) for spec in args.object_specs]
+    for spec in args.object_specs[1:]:  # a missing file or unknown name fails before any plan
+        check_object_spec(spec)
+    first = open_object(args.object_specs[0], units=args.units, scale=args.scale)
     obstacles = [Plane.table(args.table)] if args.table is not None else []
-    sampler = get_sampler(args.sampler)  # a bad name fails before the kernels load
+    get_sampler(args.sampler)  # a bad name fails before the kernels load
     _compile_kernels(quiet=args.quiet)
     show = not args.quiet and sys.stderr.isatty()
     found_everywhere = True
-    for spec, obj, out in zip(args.object_specs, objects, outputs):
+    for index, (spec, out) in enumerate(zip(args.object_specs, outputs)):
         progress = _ProgressBar(sys.stderr) if show else None
         try:
-            result = plan(gripper, obj, samples=args.samples, sampler=sampler, seed=args.seed,
-                          batch_size=args.batch_size, workers=args.workers, config=config,
-                          obstacles=obstacles, repair_collisions=repair, progress=progress)
+            # the others load in turn: one object (and what its plan builds) in memory at a time
+            obj = first if index == 0 else open_object(spec, units=args.units, scale=args.scale)
+            first = None
+            result = plan(gripper, obj, samples=args.samples, sampler=args.sampler,
+                          seed=args.seed, batch_size=args.batch_size, workers=args.workers,
+                          config=config, obstacles=obstacles, repair_collisions=repair,
+                          progress=progress)
         except ISFError as err:
-            if len(objects) == 1:
+            if len(outputs) == 1:
                 raise
-            raise ISFError(f"planning {spec} failed ({_one_line(err)}); the files written "
-                           "before it are complete") from err
+            raise ISFError(f"{spec}: {_one_line(err)} (the {index} object(s) before it are "
+                           "planned, their files complete)") from err
         finally:
             if progress:
                 progress.close()
@@ -188,6 +193,7 @@ def _cmd_plan(args: argparse.Namespace) -> int:
         print(f"{s.collision_free}/{s.samples} collision-free grasps in {s.total_time:.2f} s; "
               f"wrote {written} grasps to {out.resolve()}", flush=True)
         found_everywhere = found_everywhere and s.collision_free > 0
+        del obj, result
     return EXIT_OK if found_everywhere else EXIT_NOTHING_FOUND
 
 

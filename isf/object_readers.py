@@ -19,7 +19,7 @@ from .exceptions import ObjectLoadError
 from .obj_reader import read_obj
 from .pcd_reader import read_pcd
 
-__all__ = ["RawObject", "read_source"]
+__all__ = ["RawObject", "check_file", "read_source"]
 
 _MESH_SUFFIXES = {".stl", ".obj", ".off", ".glb", ".gltf", ".ply", ".dae"}
 _XYZ_SUFFIXES = {".xyz", ".xyzn", ".txt"}
@@ -70,8 +70,12 @@ def read_source(source) -> tuple[RawObject, str]:
     )
 
 
-def _read_file(path: Path) -> RawObject:
-    """Check that ``path`` is a non-empty file and read it by its suffix."""
+def check_file(path: Path) -> None:
+    """Check, without reading it, that ``path`` is a non-empty file of a format isf reads.
+
+    Raises:
+        ObjectLoadError: a missing path, a folder, an empty file or an unknown suffix.
+    """
     if not path.exists():
         raise ObjectLoadError(f"object file {path} does not exist: check the path")
     if not path.is_file():
@@ -80,6 +84,17 @@ def _read_file(path: Path) -> RawObject:
         raise ObjectLoadError(
             f"object file {path} is empty: pass a file that holds a mesh or point cloud"
         )
+    suffix = path.suffix.lower()
+    if suffix not in {".npy", ".pcd", ".obj", *_XYZ_SUFFIXES, *_MESH_SUFFIXES}:
+        raise ObjectLoadError(
+            f"unknown object format {suffix or '(no suffix)'!r} of {path}: "
+            "use STL, OBJ, PLY, OFF, GLB, PCD, XYZ or NPY"
+        )
+
+
+def _read_file(path: Path) -> RawObject:
+    """Check ``path`` (:func:`check_file`) and read it by its suffix."""
+    check_file(path)
     suffix = path.suffix.lower()
     if suffix == ".npy":
         try:
@@ -98,12 +113,7 @@ def _read_file(path: Path) -> RawObject:
         if faces is None:
             return RawObject(points=vertices)
         return RawObject(vertices=vertices, faces=faces)
-    if suffix in _MESH_SUFFIXES:
-        return _read_with_trimesh(path)
-    raise ObjectLoadError(
-        f"unknown object format {suffix or '(no suffix)'!r} of {path}: "
-        "use STL, OBJ, PLY, OFF, GLB, PCD, XYZ or NPY"
-    )
+    return _read_with_trimesh(path)  # one of _MESH_SUFFIXES (check_file)
 
 
 def _read_xyz(path: Path) -> np.ndarray:

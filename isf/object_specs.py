@@ -16,9 +16,10 @@ from pathlib import Path
 
 from .exceptions import ObjectLoadError
 from .object_loading import load_object
+from .object_readers import check_file
 from .object_surface import ObjectSurface
 
-__all__ = ["open_object"]
+__all__ = ["check_object_spec", "open_object"]
 
 
 def open_object(spec: str | Path, *, units: str = "m", scale: float = 1.0, **kwargs) -> ObjectSurface:
@@ -35,20 +36,47 @@ def open_object(spec: str | Path, *, units: str = "m", scale: float = 1.0, **kwa
     """
     text = str(spec)
     if text.startswith("shape:"):
-        from .shapes import make_shape
-
-        try:
-            mesh = make_shape(text.removeprefix("shape:"))
-        except KeyError as err:
-            raise ObjectLoadError(f"{err.args[0]}: pass --object shape:NAME with one of them") from None
-        return load_object(mesh, scale=scale, name=text, **kwargs)
+        return load_object(_shape_factory(text)(), scale=scale, name=text, **kwargs)
     if text.startswith("asset:"):
-        from .assets import benchmark_object
-        from .exceptions import ISFError
-
-        try:
-            asset = benchmark_object(text.removeprefix("asset:"))
-        except ISFError as err:
-            raise ObjectLoadError(str(err)) from None
+        asset = _asset(text)
         return load_object(asset.path, scale=asset.scale * scale, name=text, **kwargs)
     return load_object(Path(text), units=units, scale=scale, **kwargs)
+
+
+def check_object_spec(spec: str | Path) -> None:
+    """Check that ``spec`` names an object, without reading it: a known shape or asset (an
+    asset's wheel may be fetched, once, as :func:`open_object` would), or a non-empty file of a
+    known format (see :func:`isf.object_readers.check_file`).
+
+    Raises:
+        ObjectLoadError: what :func:`open_object` would raise for these reasons.
+    """
+    text = str(spec)
+    if text.startswith("shape:"):
+        _shape_factory(text)
+    elif text.startswith("asset:"):
+        _asset(text)
+    else:
+        check_file(Path(text))
+
+
+def _shape_factory(spec: str):
+    """The factory of a ``shape:NAME`` spec (:data:`isf.shapes.SHAPES`)."""
+    from .shapes import SHAPES
+
+    name = spec.removeprefix("shape:")
+    if name not in SHAPES:
+        raise ObjectLoadError(f"unknown shape {name!r}; shapes are {sorted(SHAPES)}: pass "
+                              "--object shape:NAME with one of them")
+    return SHAPES[name]
+
+
+def _asset(spec: str):
+    """The :class:`isf.assets.BenchmarkObject` of an ``asset:NAME`` spec."""
+    from .assets import benchmark_object
+    from .exceptions import ISFError
+
+    try:
+        return benchmark_object(spec.removeprefix("asset:"))
+    except ISFError as err:
+        raise ObjectLoadError(str(err)) from None

@@ -153,12 +153,54 @@ def test_plan_of_several_objects_gives_each_library_plan(tmp_path, schema):
             np.asarray(g.T_object_gripper).tolist() for g in result.grasps]
 
 
+def test_plan_of_several_objects_releases_each_object_after_its_plan(tmp_path, monkeypatch):
+    import gc
+    import weakref
+
+    import isf.object_specs
+    import isf.planner
+    from isf.cli import main
+
+    loaded, alive_at_plan = [], []
+    open_object, plan = isf.object_specs.open_object, isf.planner.plan
+
+    def recording_open(*args, **kwargs):
+        obj = open_object(*args, **kwargs)
+        loaded.append(weakref.ref(obj))
+        return obj
+
+    def recording_plan(*args, **kwargs):
+        gc.collect()
+        alive_at_plan.append(sum(ref() is not None for ref in loaded))
+        return plan(*args, **kwargs)
+
+    monkeypatch.setattr(isf.object_specs, "open_object", recording_open)
+    monkeypatch.setattr(isf.planner, "plan", recording_plan)
+    specs = ["shape:cylinder", "shape:box", "shape:sphere"]
+    argv = ["plan", "-g", "paper-parallel", "-n", "2", "--out-dir", str(tmp_path), "--quiet"]
+    assert main(argv + [flag for spec in specs for flag in ("-o", spec)]) in (0, 1)
+    assert len(loaded) == 3 and alive_at_plan == [1, 1, 1]  # each read in turn, then dropped
+    assert len(list(tmp_path.iterdir())) == 3
+
+
+def test_plan_of_several_objects_stops_at_an_unreadable_one_with_the_files_before_complete(
+        tmp_path, schema):
+    (tmp_path / "garbage.stl").write_bytes(b"\x00\x01 definitely not a mesh \xff" * 10)
+    proc = run("plan", "-g", "paper-parallel", "-o", "shape:cylinder", "-o", "garbage.stl",
+               "-o", "shape:box", "-n", "2", "--out-dir", "plans", "--quiet", cwd=tmp_path)
+    assert_one_line_error(proc, "garbage.stl: ")
+    assert "the 1 object(s) before it are planned" in proc.stderr
+    assert [p.name for p in (tmp_path / "plans").iterdir()] == ["cylinder.json"]
+    jsonschema.validate(json.loads((tmp_path / "plans" / "cylinder.json").read_text()), schema)
+
+
 @pytest.mark.parametrize(
     "args, message",
     [
         (["-o", "shape:box", "--out", "out.json"], "2 objects need --out-dir DIR"),
         (["-o", "sub/cylinder.stl", "--out-dir", "plans"], "would both write plans/cylinder.json"),
         (["-o", "missing.stl", "--out-dir", "plans"], "missing.stl"),
+        (["-o", "shape:no-such-shape", "--out-dir", "plans"], "no-such-shape"),
         (["--out", "out.json", "--out-dir", "plans"], "--out and --out-dir exclude each other"),
         (["--out-dir", "no-such-folder/plans"], "no-such-folder/plans"),
     ],
