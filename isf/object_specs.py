@@ -36,7 +36,7 @@ def open_object(spec: str | Path, *, units: str = "m", scale: float = 1.0, **kwa
     """
     text = str(spec)
     if text.startswith("shape:"):
-        return load_object(_shape_factory(text)(), scale=scale, name=text, **kwargs)
+        return load_object(_shape(text), scale=scale, name=text, **kwargs)
     if text.startswith("asset:"):
         asset = _asset(text)
         return load_object(asset.path, scale=asset.scale * scale, name=text, **kwargs)
@@ -53,22 +53,21 @@ def check_object_spec(spec: str | Path) -> None:
     """
     text = str(spec)
     if text.startswith("shape:"):
-        _shape_factory(text)
+        _shape(text)
     elif text.startswith("asset:"):
         _asset(text)
     else:
         check_file(Path(text))
 
 
-def _shape_factory(spec: str):
-    """The factory of a ``shape:NAME`` spec (:data:`isf.shapes.SHAPES`)."""
-    from .shapes import SHAPES
+def _shape(spec: str):
+    """The mesh of a ``shape:NAME`` spec (:func:`isf.shapes.make_shape`; milliseconds)."""
+    from .shapes import make_shape
 
-    name = spec.removeprefix("shape:")
-    if name not in SHAPES:
-        raise ObjectLoadError(f"unknown shape {name!r}; shapes are {sorted(SHAPES)}: pass "
-                              "--object shape:NAME with one of them")
-    return SHAPES[name]
+    try:
+        return make_shape(spec.removeprefix("shape:"))
+    except KeyError as err:
+        raise ObjectLoadError(f"{err.args[0]}: pass --object shape:NAME with one of them") from None
 
 
 def _asset(spec: str):
