@@ -25,6 +25,7 @@ import numpy as np
 from numba import njit
 
 from . import kdtree
+from .leaf import leaf
 from .neighbour_graph import NO_GRAPH, neighbour_graph, walk
 
 __all__ = ["NearestPoints", "nearest_point", "search_scratch", "tree_nearest"]
@@ -37,7 +38,7 @@ def search_scratch():
     return np.empty(size, np.int64), np.empty(size), np.empty((size, 3))
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@leaf
 def nearest_point(x, y, z, guess, points, tree, scratch, limit):
     """The nearest point to ``(x, y, z)`` closer than ``sqrt(limit)``: ``(index, squared
     distance)``, exact; ``(-1, limit)`` when there is none (``limit = inf``: the nearest point).
@@ -58,7 +59,7 @@ def nearest_point(x, y, z, guess, points, tree, scratch, limit):
     return tree_nearest(x, y, z, guess, points, tree, scratch, limit)
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@leaf
 def tree_nearest(x, y, z, bound, points, tree, scratch, limit):
     """:func:`nearest_point` by the k-d tree alone, its search bounded from the start by the
     distance of point ``bound`` (-1: none; ignored when not closer than the limit)."""

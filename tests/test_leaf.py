@@ -1,0 +1,64 @@
+"""Leaf kernels (isf.leaf): compiled without reference counting where numba allows it, with the
+answers of the same function compiled as an ordinary kernel."""
+
+import numpy as np
+from numba import njit
+from numba.core.options import DefaultOptions
+
+from isf import leaf as leaf_module
+from isf.leaf import leaf
+from isf.nearest import NearestPoints, nearest_point, search_scratch, tree_nearest
+
+
+def _first_closer(x, points, limit):
+    """A leaf-shaped function: reads a tuple of arrays, branches, allocates nothing."""
+    values, weights = points
+    best = -1
+    for i in range(len(values)):
+        if abs(values[i] - x) * weights[i] < limit:
+            best = i
+            break
+    return best
+
+
+@njit
+def _search_all(queries, guesses, points, tree, limit):
+    """nearest_point of every query from its guess, as the compiled loops call it."""
+    scratch = search_scratch()
+    out = np.empty(len(queries), np.int64)
+    for q in range(len(queries)):
+        out[q] = nearest_point(queries[q, 0], queries[q, 1], queries[q, 2], guesses[q], points, tree,
+                               scratch, limit)[0]
+    return out
+
+
+def test_the_searches_are_leaves_where_numba_allows():
+    expected = {name: value for name, value in (("_nrt", False), ("forceinline", True))
+                if hasattr(DefaultOptions, name)}
+    for kernel in (nearest_point, tree_nearest):
+        options = kernel.targetoptions
+        assert {name: options.get(name) for name in expected} == expected
+
+
+def test_a_leaf_answers_as_an_ordinary_kernel(monkeypatch):
+    values, weights = np.array([0.5, 0.1, 0.3]), np.array([1.0, 2.0, 1.0])
+    plain = njit(_first_closer)
+    as_leaf = leaf(_first_closer)
+    monkeypatch.setattr(leaf_module, "_OPTIONS", {})  # a numba without the options
+    fallback = leaf(_first_closer)
+    for x, limit in ((0.3, 0.05), (0.1, 0.1), (0.9, 0.01)):
+        want = plain(x, (values, weights), limit)
+        assert as_leaf(x, (values, weights), limit) == want
+        assert fallback(x, (values, weights), limit) == want
+
+
+def test_leaf_searches_in_a_compiled_loop_match_the_tree():
+    rng = np.random.default_rng(3)
+    points = rng.normal(size=(400, 3))
+    points /= np.linalg.norm(points, axis=1, keepdims=True)  # a sphere's surface sample
+    search = NearestPoints(points, graph=True)
+    queries = points[rng.integers(0, 400, 300)] * 1.05 + rng.normal(scale=0.02, size=(300, 3))
+    guesses = rng.integers(-1, 400, 300)
+    found = _search_all(queries, guesses, search.points, search.tree, np.inf)
+    distances = np.linalg.norm(queries[:, None] - points[None], axis=2)
+    np.testing.assert_array_equal(found, distances.argmin(axis=1))
