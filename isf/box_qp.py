@@ -28,6 +28,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .leaf import leaf
 from .moment_kernels import solve_small
 
 __all__ = ["solve_box_qps"]
@@ -107,7 +108,7 @@ def _gradient(H, c, x, tolerance, r, scale):
         scale[i] *= tolerance
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@leaf
 def _primal_dual(H, c, lower, upper, max_rounds, tolerance, x, work):
     """Phase 1 for one problem: at most ``max_rounds`` primal-dual rounds from the free set.
     Writes the last guess clipped into the bounds to ``x`` (n,); True when it is certified."""
@@ -130,11 +131,12 @@ def _primal_dual(H, c, lower, upper, max_rounds, tolerance, x, work):
             x[i] = min(max(guess[i], lower[i]), upper[i])
         if done:
             return True
-        low[:], high[:] = next_low, next_high
+        for i in range(n):
+            low[i], high[i] = next_low[i], next_high[i]
     return False
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@leaf
 def _primal(H, c, lower, upper, max_solves, tolerance, x, work):
     """Phase 2 for one problem: the primal active set from the feasible point ``x`` (n,),
     holding the coordinates that sit at a bound, for at most ``max_solves`` face minimisers.

@@ -5,10 +5,12 @@ point, a signed-distance estimate): it reads arrays and writes into scratch arra
 given, and allocates none. Compiled as an ordinary numba function, or inlined into its loop
 by numba (``inline="always"``), it takes and drops a reference to every array it receives on
 every call, unless numba can prove the pair removable, which it could not for leaves that
-take a tuple of arrays and branch (the searches take the k-d tree's 11 arrays). Those
-reference counts are atomic operations: measured on the ISF match of ``bench/bench_rounds.py``,
-a walk to the nearest point took 153 ns through such a function against 42 ns written out in
-its loop (``docs/benchmarks.md``, eighteenth session). A leaf is therefore compiled without
+take a tuple of arrays and branch (the searches take the k-d tree's 11 arrays), or that are
+called with views of larger arrays (IPFO's per-link helpers). Those reference counts are
+atomic operations: measured on the ISF match of ``bench/bench_rounds.py``, a walk to the
+nearest point took 153 ns through such a function against 42 ns written out in its loop, and
+IPFO's helpers as leaves cut its time by a fifth (``docs/benchmarks.md``, eighteenth
+session). A leaf is therefore compiled without
 numba's reference counting (``_nrt=False``: it must not allocate, or keep an array beyond the
 call) and inlined by LLVM into each caller (``forceinline=True``), which keeps the answers
 and the arithmetic, and so every result, bit for bit.

@@ -13,6 +13,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .leaf import leaf
+
 __all__ = ["fit_errors", "finger_systems", "group_moments", "link_poses", "palm_motion", "palm_motions",
            "palm_systems", "palm_updates", "place", "points_in_object", "solve_small"]
 
@@ -163,7 +165,7 @@ def link_poses(T, rotations, positions, A, a):
         _group_pose(T, rotations[l], positions[l], no_origin, A[l], a[l])
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@leaf
 def _group_pose(T, rotation, position, origin, A, a):
     """``A = R_palm R_link`` (3, 3) and the link origin ``a`` (3,) relative to ``origin``, in place."""
     for i in range(3):
@@ -172,7 +174,7 @@ def _group_pose(T, rotation, position, origin, A, a):
         a[i] = T[i, 0] * position[0] + T[i, 1] * position[1] + T[i, 2] * position[2] + T[i, 3] - origin[i]
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@leaf
 def _vec_pose(A, a, P):
     """``P = vec([A | a]^T)`` (12,), in place: ``P[3 i + j] = A[j, i]`` and ``P[9 + j] = a[j]``."""
     for i in range(3):
@@ -181,7 +183,7 @@ def _vec_pose(A, a, P):
         P[9 + i] = a[i]
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@leaf
 def _residual(M, v, P, out):
     """``out = v - M P`` (12,), in place."""
     for i in range(12):
@@ -191,7 +193,7 @@ def _residual(M, v, P, out):
         out[i] = acc
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@leaf
 def _add_sandwich(X, M, rows, cols, weight, out, XM, used):
     """``out += weight * X[:, :cols] M[:cols, :cols] X[:, :cols]^T`` for ``X`` (rows, >= cols).
 
@@ -249,7 +251,7 @@ def _lever_dot(G, i, M, j, cols):
     return s
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@leaf
 def _add_palm_sandwich(G, M, cols, weight, out, GM):
     """``out += weight * G[:r, :cols] M G[:r, :cols]^T`` for the palm's lever matrix ``G`` (6, 12)
     (rows 0-2: cross-product blocks, rows 3-5: ``[0 | I]``), ``r = 6`` for ``cols = 12`` and
@@ -270,7 +272,7 @@ def _add_palm_sandwich(G, M, cols, weight, out, GM):
             out[a, b] += weight * (0.0 + GM[a, 6 + b])
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@leaf
 def _normal_residual(N, P, w, out):
     """``out = N P[:9] + w`` (9,), in place."""
     for i in range(9):
@@ -383,13 +385,12 @@ def palm_systems(T, rotations, positions, origin, fit_count, M, N, v, w, s, coun
     return H, grad, centre
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def solve_small(H, rhs, x):
+@leaf
+def solve_small(LU, y, x):
     """Solve ``H x = rhs`` for a small square ``H`` (n, n) into ``x`` (n,): Gaussian elimination
-    with partial pivoting (LAPACK's ``gesv`` method), on copies."""
-    n = len(rhs)
-    LU = H.copy()
-    y = rhs.copy()
+    with partial pivoting (LAPACK's ``gesv`` method) in place, on ``LU = H`` and ``y = rhs``,
+    which it overwrites (pass copies to keep them)."""
+    n = len(y)
     for k in range(n):
         pivot = k
         for i in range(k + 1, n):
@@ -417,7 +418,7 @@ def palm_motion(H, grad, centre, max_rotation, out):
     write its motion ``T_delta`` (4, 4) into ``out``; a rotation beyond ``max_rotation``
     (radians) is scaled down with its translation. A ridge of ``1e-12 trace(H)`` keeps the
     directions the surfaces leave free (a pad sliding on a plane) at zero motion."""
-    ridged = np.empty((6, 6))
+    ridged, rhs, x = np.empty((6, 6)), np.empty(6), np.empty(6)
     trace = 0.0
     for i in range(6):
         trace += H[i, i]
@@ -425,8 +426,8 @@ def palm_motion(H, grad, centre, max_rotation, out):
         for j in range(6):
             ridged[i, j] = H[i, j]
         ridged[i, i] += 1e-12 * max(trace, 1e-300)
-    x = np.empty(6)
-    solve_small(ridged, grad, x)
+        rhs[i] = grad[i]
+    solve_small(ridged, rhs, x)
     theta2 = x[0] * x[0] + x[1] * x[1] + x[2] * x[2]
     scale = min(1.0, max_rotation / max(np.sqrt(theta2), 1e-300))
     for i in range(6):

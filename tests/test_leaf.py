@@ -5,9 +5,15 @@ import numpy as np
 from numba import njit
 from numba.core.options import DefaultOptions
 
+from isf import box_qp, moment_kernels
 from isf import leaf as leaf_module
 from isf.leaf import leaf
 from isf.nearest import NearestPoints, nearest_point, search_scratch, tree_nearest
+
+LEAVES = (nearest_point, tree_nearest, moment_kernels.solve_small, moment_kernels._group_pose,
+          moment_kernels._residual, moment_kernels._add_palm_sandwich, moment_kernels._add_sandwich,
+          box_qp._primal_dual, box_qp._primal)
+"""Kernels measured to need it (``docs/benchmarks.md``, eighteenth session)."""
 
 
 def _first_closer(x, points, limit):
@@ -32,10 +38,10 @@ def _search_all(queries, guesses, points, tree, limit):
     return out
 
 
-def test_the_searches_are_leaves_where_numba_allows():
+def test_the_hot_helpers_are_leaves_where_numba_allows():
     expected = {name: value for name, value in (("_nrt", False), ("forceinline", True))
                 if hasattr(DefaultOptions, name)}
-    for kernel in (nearest_point, tree_nearest):
+    for kernel in LEAVES:
         options = kernel.targetoptions
         assert {name: options.get(name) for name in expected} == expected
 

@@ -74,7 +74,8 @@ def test_small_solve_matches_lapack(n):
         H[0, 0] = 0.0  # needs a row exchange
     rhs = rng.normal(size=n)
     x = np.empty(n)
-    solve_small(H, rhs, x)
+    LU, y = H.copy(), rhs.copy()
+    solve_small(LU, y, x)  # in place: overwrites LU and y
     np.testing.assert_allclose(x, np.linalg.solve(H, rhs), rtol=1e-10, atol=1e-12)
 
 
