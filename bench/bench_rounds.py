@@ -10,7 +10,12 @@ the ~2000-point bunny) and reports per fit-iteration: the time of each step, per
 how often a contact point's last answer is still its nearest point, and what the walks save,
 measured in the same run as the extra time of the same rounds with every last answer
 forgotten before each round (every query then searches the k-d tree from its root; the
-answers, hence the rounds, are the same either way).
+answers, hence the rounds, are the same either way). Last, the match's searches alone: every
+query of the rounds (its contact point and the object point its walk starts from) answered in
+one compiled loop by ``isf.nearest.nearest_point``, a leaf kernel (``isf.leaf``: compiled
+without numba's reference counting, inlined by LLVM), and by the same function compiled as an
+ordinary kernel inlined by numba (as isf compiled it before the eighteenth session), with the
+ratio measured in the same run and a check that both give the same answers.
 
 Run from the repository root:  python bench/bench_rounds.py [--quick] [--repeats 5]
 """
@@ -35,6 +40,10 @@ from isf.nearest import nearest_point, search_scratch  # noqa: E402
 
 FITS = 32
 
+counted_nearest_point = njit(nogil=True, error_model="numpy", inline="always")(
+    nearest_point.py_func)
+"""``nearest_point`` compiled as an ordinary kernel inlined by numba, reference counting and all."""
+
 
 @njit(cache=True)
 def _unchanged(slots, grip, obj, hits, queries):
@@ -53,6 +62,73 @@ def _unchanged(slots, grip, obj, hits, queries):
                                   obj[2], scratch, np.inf)[0]
             hits[level] += found == last[b, g]
             queries[level] += 1
+
+
+@njit(cache=True)
+def _record_queries(slots, grip, queries, starts, n):
+    """Append the running fits' contact points at the state before a round (``queries``) with
+    the object point each one's search starts from (``starts``: its last answer, -1 for none)
+    from row ``n``; returns the new count."""
+    status, level_of, current, last = slots[6], slots[7], slots[11], slots[14]
+    for b in range(len(status)):
+        if status[b] != kernel.RUNNING:
+            continue
+        rows, count = grip[4][level_of[b]], grip[5][level_of[b]]
+        for i in range(count):
+            if n == len(starts):
+                return n
+            queries[n] = current[b, i]
+            starts[n] = last[b, rows[i]]
+            n += 1
+    return n
+
+
+@njit(cache=True)
+def _leaf_searches(queries, starts, points, tree):
+    """``nearest_point`` of each query from its start, in one loop: the answers."""
+    scratch, found = search_scratch(), np.empty(len(starts), np.int64)
+    for q in range(len(starts)):
+        found[q] = nearest_point(queries[q, 0], queries[q, 1], queries[q, 2], starts[q], points,
+                                 tree, scratch, np.inf)[0]
+    return found
+
+
+@njit
+def _counted_searches(queries, starts, points, tree):
+    """:func:`_leaf_searches` with ``counted_nearest_point``."""
+    scratch, found = search_scratch(), np.empty(len(starts), np.int64)
+    for q in range(len(starts)):
+        found[q] = counted_nearest_point(queries[q, 0], queries[q, 1], queries[q, 2], starts[q],
+                                         points, tree, scratch, np.inf)[0]
+    return found
+
+
+def round_queries(gripper, obj, proposals) -> tuple[np.ndarray, np.ndarray]:
+    """Every search of the match in the rounds of all fits: contact points (Q, 3) and the object
+    points their searches start from (Q,) (the previous point's answer is not tried here)."""
+    fitter = LockstepFitter(gripper, obj)
+    for i, p in enumerate(proposals):
+        fitter.add(i, p.T_object_gripper, p.q)
+    queries, starts, n = np.empty((1 << 20, 3)), np.empty(1 << 20, np.int64), 0
+    while fitter.n_active:
+        n = _record_queries(fitter._slots, fitter._grip, queries, starts, n)
+        fitter.step()
+    return queries[:n], starts[:n]
+
+
+def time_searches(obj, queries, starts, repeats: int) -> dict:
+    """Median ns per search of the leaf and the ordinary kernel, alternating, and whether their
+    answers agree."""
+    points, tree = obj.points, obj.search.tree
+    same = np.array_equal(_leaf_searches(queries, starts, points, tree),
+                          _counted_searches(queries, starts, points, tree))
+    leaf, counted = [], []
+    for _ in range(repeats):
+        for loop, times in ((_leaf_searches, leaf), (_counted_searches, counted)):
+            t0 = time.perf_counter()
+            loop(queries, starts, points, tree)
+            times.append((time.perf_counter() - t0) / len(starts) * 1e9)
+    return {"leaf": statistics.median(leaf), "counted": statistics.median(counted), "same": same}
 
 
 def run_rounds(gripper, obj, proposals, forget: bool, count_hits: bool) -> dict:
@@ -125,6 +201,14 @@ def main() -> None:
         [[obj.name, obj.n_points, n, _common.fmt(step[0]), _common.fmt(step[1]),
           _common.fmt(step[2]), _common.fmt(sum(step)), _common.fmt(match_tree),
           _common.fmt(queries.sum() / n), _common.fmt(saved_ns)]])
+    search_points, query_starts = round_queries(gripper, obj, proposals)
+    searches = time_searches(obj, search_points, query_starts, args.repeats)
+    search_table = _common.markdown_table(
+        ["searches", "from a last answer", "leaf kernel (ns per search)",
+         "ordinary kernel (ns per search)", "ordinary / leaf", "same answers"],
+        [[len(query_starts), f"{np.mean(query_starts >= 0):.1%}", _common.fmt(searches["leaf"]),
+          _common.fmt(searches["counted"]), _common.fmt(searches["counted"] / searches["leaf"]),
+          "yes" if searches["same"] else "NO"]])
     level_table = _common.markdown_table(
         ["pyramid level", "contact points matched", "last answer still the nearest"],
         [[level, int(queries[level]), f"{hits[level] / max(queries[level], 1):.1%}"]
@@ -134,7 +218,11 @@ def main() -> None:
             "time). Saved per query: (match from the tree's root - match) / the queries.")
     _common.finish("bench_rounds: where an ISF round's time goes",
                    ["### Steps of a round", note, table,
-                    "### Searches from the last answer", level_table], started, header, args.out)
+                    "### Searches from the last answer", level_table,
+                    "### The match's searches: leaf kernel against ordinary kernel",
+                    "Every search of the rounds above, from its contact point's last answer, "
+                    f"in one compiled loop; medians of {args.repeats} alternating runs.",
+                    search_table], started, header, args.out)
 
 
 if __name__ == "__main__":
