@@ -39,8 +39,8 @@ def _search_all(queries, guesses, points, tree, limit):
 
 
 def test_the_hot_helpers_are_leaves_where_numba_allows():
-    expected = {name: value for name, value in (("_nrt", False), ("forceinline", True))
-                if hasattr(DefaultOptions, name)}
+    assert set(leaf_module._OPTIONS) == {"_nrt", "forceinline"} & set(dir(DefaultOptions))
+    expected = leaf_module._OPTIONS
     for kernel in LEAVES:
         options = kernel.targetoptions
         assert {name: options.get(name) for name in expected} == expected
@@ -52,6 +52,7 @@ def test_a_leaf_answers_as_an_ordinary_kernel(monkeypatch):
     as_leaf = leaf(_first_closer)
     monkeypatch.setattr(leaf_module, "_OPTIONS", {})  # a numba without the options
     fallback = leaf(_first_closer)
+    assert "_nrt" not in fallback.targetoptions  # an ordinary kernel
     for x, limit in ((0.3, 0.05), (0.1, 0.1), (0.9, 0.01)):
         want = plain(x, (values, weights), limit)
         assert as_leaf(x, (values, weights), limit) == want
