@@ -8,7 +8,7 @@ from numba.core.options import DefaultOptions
 from isf import box_qp, moment_kernels
 from isf import leaf as leaf_module
 from isf.leaf import leaf
-from isf.nearest import NearestPoints, nearest_point, search_scratch, tree_nearest
+from isf.nearest import NearestPoints, nearest_point, tree_nearest
 
 LEAVES = (nearest_point, tree_nearest, moment_kernels.solve_small, moment_kernels._group_pose,
           moment_kernels._residual, moment_kernels._add_palm_sandwich, moment_kernels._add_sandwich,
@@ -25,17 +25,6 @@ def _first_closer(x, points, limit):
             best = i
             break
     return best
-
-
-@njit
-def _search_all(queries, guesses, points, tree, limit):
-    """nearest_point of every query from its guess, as the compiled loops call it."""
-    scratch = search_scratch()
-    out = np.empty(len(queries), np.int64)
-    for q in range(len(queries)):
-        out[q] = nearest_point(queries[q, 0], queries[q, 1], queries[q, 2], guesses[q], points, tree,
-                               scratch, limit)[0]
-    return out
 
 
 def test_the_hot_helpers_are_leaves_where_numba_allows():
@@ -59,13 +48,13 @@ def test_a_leaf_answers_as_an_ordinary_kernel(monkeypatch):
         assert fallback(x, (values, weights), limit) == want
 
 
-def test_leaf_searches_in_a_compiled_loop_match_the_tree():
+def test_leaf_searches_in_a_compiled_loop_match_brute_force():
     rng = np.random.default_rng(3)
     points = rng.normal(size=(400, 3))
     points /= np.linalg.norm(points, axis=1, keepdims=True)  # a sphere's surface sample
     search = NearestPoints(points, graph=True)
     queries = points[rng.integers(0, 400, 300)] * 1.05 + rng.normal(scale=0.02, size=(300, 3))
     guesses = rng.integers(-1, 400, 300)
-    found = _search_all(queries, guesses, search.points, search.tree, np.inf)
+    _, found = search.query(queries, guesses)  # nearest_point per query in a compiled loop
     distances = np.linalg.norm(queries[:, None] - points[None], axis=2)
     np.testing.assert_array_equal(found, distances.argmin(axis=1))
