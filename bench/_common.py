@@ -433,7 +433,7 @@ def machine_description() -> str:
     import scipy
 
     import isf
-    from isf.compiled import warm_up
+    from isf.compiled.warming import warm_up
 
     kernels = warm_up()
 

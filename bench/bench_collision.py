@@ -5,7 +5,7 @@ and saved: the fitted grasps of every (gripper, object) pair below, plus each gr
 by a random 1-5 mm shift and 2-5 degree turn (about a random axis through the palm frame).
 Both trees then check the same poses:
 
-* **after**: this tree's :class:`isf.collision.CollisionChecker`, in this process;
+* **after**: this tree's :class:`isf.collision.checker.CollisionChecker`, in this process;
 * **before**: the tree named by ``--base`` (a git worktree of the original commit), run as a
   subprocess of this script with that tree first on ``PYTHONPATH`` (``--worker`` mode).
 
@@ -15,7 +15,7 @@ Allegro on ``asset:ycb:TomatoSoupCan``, or a shape when YCB is absent) and, over
 how many poses get a different ``collision_free`` or ``colliding_links``; a disagreement is
 *explained* when the baseline's penetration lies within 0.1 mm of the 2 mm tolerance.
 
-The Allegro hand is tagged as the tests do (``isf.registration.suggest_contacts`` and
+The Allegro hand is tagged as the tests do (``isf.registration.tagging.suggest_contacts`` and
 ``tag_urdf`` with ``suggest_approach``) into a temporary folder.
 
 Also reported: the exact tangent-plane estimates per check (``CollisionChecker.estimates``;
@@ -82,7 +82,7 @@ def load_gripper(name: str, workdir: Path):
     if name != "allegro-right":
         return isf.load_gripper(name)
     from isf.assets import vendor_gripper
-    from isf.registration import suggest_approach, suggest_contacts, tag_urdf
+    from isf.registration.tagging import suggest_approach, suggest_contacts, tag_urdf
 
     src = vendor_gripper(name)
     preview = tag_urdf(src, workdir / f"{name}.urdf", suggest_contacts(src, points=64),
@@ -136,7 +136,7 @@ def build_corpus(path: Path, workdir: Path, quick: bool) -> None:
 def run_worker(corpus: Path, out: Path, repeats: int) -> None:
     """Check every pose of ``corpus`` with the ``isf`` on the path; write verdicts and timings."""
     import isf
-    from isf.collision import CollisionChecker
+    from isf.collision.checker import CollisionChecker
 
     data = np.load(corpus)
     results = {}

@@ -1,8 +1,8 @@
-"""Grasp quality of multi-fingered hands, before vs after the collision repair (isf.clearance).
+"""Grasp quality of multi-fingered hands, before vs after the collision repair (isf.repair.clearance).
 
 For each hand and YCB object (real size), one ``isf.plan`` of 60 samples (regret sampler, seed 0)
 with ``repair_collisions=False`` (the paper's Algorithm 3: fit, then check) and one with
-``repair_collisions=True`` (a colliding fit is repaired by :func:`isf.clearance.repair_penetration`
+``repair_collisions=True`` (a colliding fit is repaired by :func:`isf.repair.clearance.repair_penetration`
 and re-checked). Reported: collision-free grasps, valid grasps (collision-free and every contact
 surface touching), the mean fitting error of the collision-free grasps
 (``FitResult.mean_distance``), how many contact surfaces touch in the collision-free grasps
@@ -40,7 +40,7 @@ import numpy as np  # noqa: E402
 
 import isf  # noqa: E402
 from isf.assets import vendor_gripper  # noqa: E402
-from isf.registration import suggest_approach, suggest_contacts, tag_urdf  # noqa: E402
+from isf.registration.tagging import suggest_approach, suggest_contacts, tag_urdf  # noqa: E402
 
 SAMPLES = 60
 SEED = 0

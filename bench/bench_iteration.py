@@ -15,7 +15,7 @@ measured in the same process, one thread:
     weighted by the share of the ISF iterations that ran on that level, once per fit (the
     batch-of-1 floor) and stacked over all fits in one call divided by the number of fits (the
     lockstep floor: the engine makes one query per round); the full 512-point query,
-    ``isf.correspondence.match`` (nearest + outlier and duplicate filters) and
+    ``isf.fitting.correspondence.match`` (nearest + outlier and duplicate filters) and
     ``Gripper.contact_kinematics`` are given beside;
 (c) Open3D's point-to-plane ICP on the 512 contact points at the fitted poses (target: the
     object's points with their normals; max correspondence distance 5 mm):
@@ -44,7 +44,7 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 import isf  # noqa: E402
-from isf.correspondence import match  # noqa: E402
+from isf.fitting.correspondence import match  # noqa: E402
 
 GRIPPER = "paper-parallel"
 MAX_POINTS = 2000

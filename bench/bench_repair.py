@@ -1,4 +1,4 @@
-"""CPU time of the collision repair (`isf.clearance`) on the fits that collide in real plans.
+"""CPU time of the collision repair (`isf.repair.clearance`) on the fits that collide in real plans.
 
 Two steps, so that two versions of isf (or two repair settings, ``repair_settings.py``) can
 repair the same fits:
@@ -13,7 +13,7 @@ repair the same fits:
   repair parameters (the fits it collects depend on them, since the sampler learns from every
   outcome);
 * ``CORPUS.pkl`` alone: builds one ``ClearanceRepair`` per configuration (after
-  ``isf.compiled.warm_up()``) and repairs every stored fit; reports the CPU time per repair
+  ``isf.compiled.warming.warm_up()``) and repairs every stored fit; reports the CPU time per repair
   (process time; median over ``--repeats`` passes), the set-up time (the first build in the
   run, whose caches are warm where an earlier configuration has the same gripper or mesh, then
   a build again), and how many repairs differ from the stored answers (pose, joints, depths
@@ -37,9 +37,10 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 import isf  # noqa: E402
-from isf import assets, clearance  # noqa: E402
-from isf.compiled import warm_up  # noqa: E402
-from isf.working_surface import resolve_spacing, working_surface  # noqa: E402
+from isf import assets
+from isf.repair import clearance  # noqa: E402
+from isf.compiled.warming import warm_up  # noqa: E402
+from isf.planning._working_surface import resolve_spacing, working_surface  # noqa: E402
 
 SAMPLES, MAX_POINTS = 60, 2000
 

@@ -1,8 +1,8 @@
 """Where the time of an ISF round goes, in the lockstep engine.
 
-A round (``isf.lockstep_kernel.run``) is one ISF iteration of every running fit in three steps:
+A round (``isf.fitting.engine_kernel.run``) is one ISF iteration of every running fit in three steps:
 *match* (each contact point's nearest object point, searched from its last answer by a walk on
-the object's Delaunay graph, ``isf.neighbour_graph``; the outlier, normal and duplicate
+the object's Delaunay graph, ``isf.search._neighbour_graph``; the outlier, normal and duplicate
 filters; the pairs' moments), *IPFO* (palm and finger steps on the moments) and *finish* (new
 contact points, the stop rule). This script runs the engine's rounds itself, step by step, on
 the fits of ``bench_iteration.py`` (32 uniform-sampler starts, seed 0, on the paper gripper and
@@ -12,7 +12,7 @@ measured in the same run as the extra time of the same rounds with every last an
 forgotten before each round (every query then searches the k-d tree from its root; the
 answers, hence the rounds, are the same either way). Last, the match's searches alone: every
 query of the rounds (its contact point and the object point its walk starts from) answered in
-one compiled loop by ``isf.nearest.nearest_point``, a leaf kernel (``isf.leaf``: compiled
+one compiled loop by ``isf.search.nearest.nearest_point``, a leaf kernel (``isf.compiled.leaf``: compiled
 without numba's reference counting, inlined by LLVM), and by the same function compiled as an
 ordinary kernel inlined by numba (as isf compiled it before the eighteenth session), with the
 ratio measured in the same run and a check that both give the same answers.
@@ -32,11 +32,11 @@ from numba import njit  # noqa: E402
 
 import isf  # noqa: E402
 from bench_iteration import GRIPPER, MAX_POINTS, starts  # noqa: E402
-from isf import lockstep_kernel as kernel  # noqa: E402
-from isf.ipfo import answer_requests  # noqa: E402
-from isf.ipfo_kernel import DONE, resume  # noqa: E402
-from isf.lockstep import LockstepFitter  # noqa: E402
-from isf.nearest import nearest_point, search_scratch  # noqa: E402
+from isf.fitting import engine_kernel as kernel  # noqa: E402
+from isf.fitting._ipfo import answer_requests  # noqa: E402
+from isf.fitting._ipfo_kernel import DONE, resume  # noqa: E402
+from isf.fitting.engine import LockstepFitter  # noqa: E402
+from isf.search.nearest import nearest_point, search_scratch  # noqa: E402
 
 FITS = 32
 

@@ -4,7 +4,7 @@ Reads a corpus of the fits real plans hand to the repair (``bench/bench_repair.p
 CORPUS.pkl``), repairs each again with the default ``ClearanceRepair``, recording every step
 (the deepest violation before it, and the deepest its QP promises after it, from the
 linearised rows), and re-checks each repaired grasp with the planner's collision checker
-(``isf.evaluation.SampleJudge``: a repair counts only when that check passes). It prints per
+(``isf.planning._evaluation.SampleJudge``: a repair counts only when that check passes). It prints per
 configuration:
 
 * the repairs by their depth before repair: how many, how many pass the re-check, their steps
@@ -27,8 +27,8 @@ import numpy as np
 from bench_repair import stored_configurations
 
 import isf
-from isf.compiled import warm_up
-from isf.evaluation import SampleJudge
+from isf.compiled.warming import warm_up
+from isf.planning._evaluation import SampleJudge
 
 DEPTH_BINS_MM = (0.0, 1.0, 3.0, 6.0, 10.0, 15.0, 20.0, 30.0, np.inf)
 

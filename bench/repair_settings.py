@@ -8,10 +8,10 @@ parameters) are always compared too, as ``default``. Two commands:
 
 * ``corpus CORPUS.pkl``: the fits of a corpus (``bench/bench_repair.py --collect``) repaired
   with every setting and re-checked by the planner's collision checker
-  (``isf.evaluation.SampleJudge``: a repair counts only when that check passes). Per
+  (``isf.planning._evaluation.SampleJudge``: a repair counts only when that check passes). Per
   configuration and setting: the repairs that pass (and how many of them differ from the
   default's), the CPU time and steps of all repairs, and the mean point-to-plane distance of
-  the repaired grasps (``isf.lockstep.score_fit``) over those that pass with every setting.
+  the repaired grasps (``isf.fitting.engine.score_fit``) over those that pass with every setting.
   Then, per setting and outcome (pass or fail with the default and with the setting): in the
   setting's first step, the most opposed pair of clearance-row normals within one geometry
   element (the median of its dot product; -1 means rows pushing one link opposite ways).
@@ -46,11 +46,11 @@ from bench_repair import stored_configurations
 from table1 import DEFAULT_OBJECTS
 
 import isf
-from isf import clearance
-from isf.collision import Plane
-from isf.compiled import warm_up
-from isf.evaluation import SampleJudge
-from isf.lockstep import score_fit
+from isf.repair import clearance
+from isf.collision.checker import Plane
+from isf.compiled.warming import warm_up
+from isf.planning._evaluation import SampleJudge
+from isf.fitting.engine import score_fit
 from isf.result import FitStatus
 
 

@@ -226,8 +226,8 @@ def _check_cli_complete(app, env) -> None:
 
 
 # ----------------------------------------------------------------------------------------------
-# Re-exported names. `isf.gripper.Gripper` (how an annotation spells a type), `isf.Gripper` (how
-# the API page documents it) and a short `Gripper` in a docstring of `isf.planner` all name the
+# Re-exported names. `isf.gripper.model.Gripper` (how an annotation spells a type), `isf.Gripper` (how
+# the API page documents it) and a short `Gripper` in a docstring of `isf.planning.planner` all name the
 # same Python object. When Sphinx cannot resolve such a reference, import it (relative to the
 # module of the page's context and to the module that defines the docstring) and, if that is an
 # object the API page documents, link to the documented name. A name that does not import, or

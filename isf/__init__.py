@@ -11,12 +11,12 @@ file; the ``gripper`` frame is the URDF's root link.
 
 __version__ = "0.1.0"
 
-from .kernel_cache import refresh_installed as _refresh_kernel_cache
+from .compiled.cache import refresh_installed as _refresh_kernel_cache
 
 _refresh_kernel_cache()  # before any kernel loads: drop cached kernels whose sources changed
 
-from .clearance import RepairConfig
-from .collision import CollisionChecker, CollisionReport, Plane
+from .repair.clearance import RepairConfig
+from .collision.checker import CollisionChecker, CollisionReport, Plane
 from .config import FitConfig
 from .exceptions import (
     ConfigError,
@@ -28,13 +28,13 @@ from .exceptions import (
     QPStepError,
     SamplerNotFound,
 )
-from .fit import fit, fit_many
-from .gripper import ContactSurface, Gripper
-from .gripper_loading import inspect_gripper, load_gripper
-from .object_loading import load_object
-from .object_specs import open_object
-from .object_surface import ObjectSurface
-from .planner import Grasp, PlanResult, PlanStats, plan
+from .fitting.fit import fit, fit_many
+from .gripper.model import ContactSurface, Gripper
+from .gripper.loading import inspect_gripper, load_gripper
+from .object.loading import load_object
+from .object.specs import open_object
+from .object.surface import ObjectSurface
+from .planning.planner import Grasp, PlanResult, PlanStats, plan
 from .result import FitResult, FitStatus, IterationRecord
 from .samplers import Outcome, Proposal, Sampler, available_samplers, get_sampler, register_sampler
 

@@ -17,7 +17,7 @@ The paper gives ``L = 4``, ``I0 = 200``, ``eps0 = 0.008``, ``delta_e = 1e-5`` an
   different on every pyramid level; isf stops IPFO when E *per pair* decreases
   by less than ``delta_e / 512``.
 * ``eps0 = 0.008`` is dimensionless (a relative change of the displacement,
-  see :mod:`isf.fit`), ``L`` and ``I0`` are counts.
+  see :mod:`isf.fitting.fit`), ``L`` and ``I0`` are counts.
 """
 
 from __future__ import annotations

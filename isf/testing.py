@@ -22,8 +22,8 @@ import re
 import numpy as np
 import pinocchio as pin
 
-from .gripper import ContactSurface, Gripper
-from .object_surface import ObjectSurface
+from .gripper.model import ContactSurface, Gripper
+from .object.surface import ObjectSurface
 from .samplers.base import Outcome, Proposal, Sampler
 
 __all__ = ["canonical_gripper", "canonical_object", "check_sampler"]

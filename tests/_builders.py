@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from isf.gripper import ContactSurface, Gripper
-from isf.object_surface import ObjectSurface
+from isf.gripper.model import ContactSurface, Gripper
+from isf.object.surface import ObjectSurface
 
 PARALLEL_XML = """<robot name="parallel">
   <link name="palm"/><link name="left"/><link name="right"/>

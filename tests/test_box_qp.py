@@ -1,10 +1,10 @@
-"""Exact box-constrained QPs (isf.box_qp) against scipy's bounded least squares."""
+"""Exact box-constrained QPs (isf.fitting._box_qp) against scipy's bounded least squares."""
 
 import numpy as np
 import pytest
 from scipy.optimize import lsq_linear
 
-from isf.box_qp import PRIMAL_DUAL_ROUNDS, solve_box_qps
+from isf.fitting._box_qp import PRIMAL_DUAL_ROUNDS, solve_box_qps
 
 
 def random_problems(rng, n_problems, n, rows):

@@ -1,4 +1,4 @@
-"""The compiled kinematic tree (isf.chain) against Pinocchio and finite differences.
+"""The compiled kinematic tree (isf.gripper.chain) against Pinocchio and finite differences.
 
 Oracles: Pinocchio's own ``computeJointJacobians`` / ``updateFramePlacements`` /
 ``getFrameJacobian(LOCAL_WORLD_ALIGNED)`` loop, written out here; central finite
@@ -14,9 +14,9 @@ from scipy.spatial.transform import Rotation
 
 import isf
 from isf import assets
-from isf.chain import KinematicChain
+from isf.gripper.chain import KinematicChain
 from isf.exceptions import InvalidInputError
-from isf.gripper import ContactSurface, Gripper
+from isf.gripper.model import ContactSurface, Gripper
 
 BUNDLED = ("paper-parallel", "flat-parallel", "three-finger")
 ATOL = 1e-12

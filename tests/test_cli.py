@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import isf
-from isf.plan_json import SCHEMA_PATH
+from isf.planning.plan_json import SCHEMA_PATH
 
 
 def run(*args, cwd=None):
@@ -157,12 +157,12 @@ def test_plan_of_several_objects_releases_each_object_after_its_plan(tmp_path, m
     import gc
     import weakref
 
-    import isf.object_specs
-    import isf.planner
+    import isf.object.specs
+    import isf.planning.planner
     from isf.cli import main
 
     loaded, alive_at_plan = [], []
-    open_object, plan = isf.object_specs.open_object, isf.planner.plan
+    open_object, plan = isf.object.specs.open_object, isf.planning.planner.plan
 
     def recording_open(*args, **kwargs):
         obj = open_object(*args, **kwargs)
@@ -174,8 +174,8 @@ def test_plan_of_several_objects_releases_each_object_after_its_plan(tmp_path, m
         alive_at_plan.append(sum(ref() is not None for ref in loaded))
         return plan(*args, **kwargs)
 
-    monkeypatch.setattr(isf.object_specs, "open_object", recording_open)
-    monkeypatch.setattr(isf.planner, "plan", recording_plan)
+    monkeypatch.setattr(isf.object.specs, "open_object", recording_open)
+    monkeypatch.setattr(isf.planning.planner, "plan", recording_plan)
     specs = ["shape:cylinder", "shape:box", "shape:sphere"]
     argv = ["plan", "-g", "paper-parallel", "-n", "2", "--out-dir", str(tmp_path), "--quiet"]
     assert main(argv + [flag for spec in specs for flag in ("-o", spec)]) in (0, 1)

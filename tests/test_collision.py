@@ -17,10 +17,10 @@ import pinocchio as pin
 import pytest
 import trimesh
 
-from isf.collision import CollisionChecker, CollisionReport, Plane
+from isf.collision.checker import CollisionChecker, CollisionReport, Plane
 from isf.exceptions import GripperDescriptionError, InvalidInputError
-from isf.gripper import ContactSurface, Gripper, LinkGeometry
-from isf.object_surface import ObjectSurface
+from isf.gripper.model import ContactSurface, Gripper, LinkGeometry
+from isf.object.surface import ObjectSurface
 
 PAD = 0.002  # pad thickness, m
 BODY = 0.01  # finger body thickness, m

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 import trimesh
 
-from isf.collision import CollisionChecker
-from isf.collision_elements import Element, point_triangle_distance
-from isf.collision_kernel import reverse_clearance
-from isf.gripper import LinkGeometry
+from isf.collision.checker import CollisionChecker
+from isf.collision._elements import Element, point_triangle_distance
+from isf.collision.kernel import reverse_clearance
+from isf.gripper.model import LinkGeometry
 from test_collision import CUBE, GAP, _coal_bvh, jaw_gripper, mesh_object, pose
 
 

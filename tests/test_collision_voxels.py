@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 import trimesh
 
-from isf.collision import CollisionChecker
-from isf.collision_elements import Element
-from isf.collision_voxels import SurfaceVoxels, _gaps
-from isf.gripper import LinkGeometry
+from isf.collision.checker import CollisionChecker
+from isf.collision._elements import Element
+from isf.collision.voxels import SurfaceVoxels, _gaps
+from isf.gripper.model import LinkGeometry
 from test_collision import jaw_gripper, mesh_object, pose
 
 

@@ -8,7 +8,7 @@ _SCRIPT = """
 import json, sys
 from numba.core.dispatcher import Dispatcher
 import isf
-from isf.compiled import warm_up
+from isf.compiled.warming import warm_up
 
 def signatures():
     found = {}
@@ -33,13 +33,13 @@ def test_warm_up_covers_every_kernel_call_of_a_plan():
     counts = json.loads(out.stdout.strip().splitlines()[-1])
     before, after = counts["before"], counts["after"]
     entry_points = {  # the kernels the engine calls from Python (they call the others)
-        "isf.lockstep_kernel.run", "isf.lockstep_kernel.enter_level", "isf.lockstep_kernel.score_state",
-        "isf.lockstep_kernel.finish_round", "isf.ipfo_kernel.resume", "isf.nearest._query",
-        "isf.nearest._query_k", "isf.correspondence._filter_pairs", "isf.chain._frame_kinematics",
-        "isf.dense_qp._dual_active_set", "isf.collision_kernel.check_elements",
-        "isf.collision_kernel.reverse_clearance", "isf.collision._rigid",
-        "isf.repair_step.to_object", "isf.repair_step.motion_rows", "isf.repair_step.step_qp",
-        "isf.repair_contacts.contact_pairs",
+        "isf.fitting.engine_kernel.run", "isf.fitting.engine_kernel.enter_level", "isf.fitting.engine_kernel.score_state",
+        "isf.fitting.engine_kernel.finish_round", "isf.fitting._ipfo_kernel.resume", "isf.search.nearest.nearest_with_guesses",
+        "isf.search.nearest._query_k", "isf.fitting.correspondence.filter_pairs", "isf.gripper.chain.compiled_frame_kinematics",
+        "isf.repair.dense_qp._dual_active_set", "isf.collision.kernel.check_elements",
+        "isf.collision.kernel.reverse_clearance", "isf.collision.checker._rigid",
+        "isf.repair._step.to_object", "isf.repair._step.motion_rows", "isf.repair._step.step_qp",
+        "isf.repair._contacts.contact_pairs",
     }
     assert entry_points <= {name for name, n in before.items() if n}  # compiled by warm_up
     assert after == before  # and a plan compiled nothing more

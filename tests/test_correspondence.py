@@ -3,8 +3,8 @@
 import numpy as np
 
 import isf
-from isf.correspondence import match_many
-from isf.segments import Segments
+from isf.fitting.correspondence import match_many
+from isf.fitting.segments import Segments
 
 
 def _plane(n=41):
@@ -79,7 +79,7 @@ def test_filters_equal_a_plain_reference():
 def test_outlier_threshold_equals_numpy_median_with_ties_and_either_branch():
     """The counting shortcut (floor settles it) and the selection both give exactly
     max(factor * np.median, floor), on distances with many equal values."""
-    from isf.correspondence import outlier_threshold
+    from isf.fitting.correspondence import outlier_threshold
 
     rng = np.random.default_rng(3)
     branches = set()
@@ -102,7 +102,7 @@ def test_outlier_threshold_equals_numpy_median_with_ties_and_either_branch():
 
 
 def test_select_returns_the_kth_value_and_partitions_around_it():
-    from isf.correspondence import select
+    from isf.fitting.correspondence import select
 
     rng = np.random.default_rng(4)
     for trial in range(2000):

@@ -1,11 +1,11 @@
-"""Tests of isf.dense_qp against independent answers: KKT conditions, OSQP, closed forms."""
+"""Tests of isf.repair.dense_qp against independent answers: KKT conditions, OSQP, closed forms."""
 
 import numpy as np
 import osqp
 import pytest
 import scipy.sparse as sp
 
-from isf.dense_qp import solve_dense_qp
+from isf.repair.dense_qp import solve_dense_qp
 from isf.exceptions import InvalidInputError
 
 

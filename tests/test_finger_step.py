@@ -6,10 +6,10 @@ from scipy.optimize import lsq_linear
 
 import isf
 from _builders import parallel_gripper, random_rotation
-from isf.finger_step import FingerStepQP
-from isf.finger_step import finger_steps
-from isf.ipfo import PairBatch
-from isf.segments import Segments
+from isf.fitting._finger_step import FingerStepQP
+from isf.fitting._finger_step import finger_steps
+from isf.fitting.reference import PairBatch
+from isf.fitting.segments import Segments
 from isf.se3 import make_transform
 
 
@@ -109,11 +109,11 @@ def test_batched_finger_steps_equal_bvls(rounds, monkeypatch):
     """Interior minimisers come from one batched solve, bounded ones from the certified active
     set or (uncertified: forced here by allowing one active-set round) from OSQP: all equal
     BVLS."""
-    import isf.box_qp
+    import isf.fitting._box_qp
 
     calls = {"osqp": 0}
     if rounds is not None:
-        monkeypatch.setattr(isf.box_qp, "MAX_ROUNDS", rounds)
+        monkeypatch.setattr(isf.fitting._box_qp, "MAX_ROUNDS", rounds)
     solve_normal = FingerStepQP.solve_normal
 
     def counting(self, *args):

@@ -163,14 +163,14 @@ def test_an_unsolvable_finger_step_is_skipped_not_fatal(monkeypatch, caplog):
     leaves the interior; with no active-set round allowed, none is certified and each goes
     to OSQP.
     """
-    import isf.box_qp
-    import isf.finger_step as finger_step
+    import isf.fitting._box_qp
+    import isf.fitting._finger_step as finger_step
 
     def fail(self, AtA, Atb, lower, upper):
         raise isf.QPStepError({"P": AtA}, "primal infeasible")
 
     monkeypatch.setattr(finger_step.FingerStepQP, "solve_normal", fail)
-    monkeypatch.setattr(isf.box_qp, "MAX_ROUNDS", 0)
+    monkeypatch.setattr(isf.fitting._box_qp, "MAX_ROUNDS", 0)
     hand = isf.load_gripper("three-finger")
     obj = isf.open_object("shape:sphere")
     T0 = make_transform(np.eye(3), obj.centroid - [0.0, 0.0, 0.08])

@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 import trimesh
 
-from isf.bundled import bundled_grippers
+from isf.gripper.bundled import bundled_grippers
 from isf.exceptions import GripperDescriptionError
-from isf.gripper_loading import format_report, inspect_gripper, load_gripper
-from isf.mesh_paths import MeshNotFoundError, mesh_path_candidates, resolve_mesh_path
-from isf.urdf_tags import rpy_matrix
+from isf.gripper.loading import format_report, inspect_gripper, load_gripper
+from isf.gripper.mesh_paths import MeshNotFoundError, mesh_path_candidates, resolve_mesh_path
+from isf.gripper.urdf_tags import rpy_matrix
 
 NS = 'xmlns:isf="urn:isf:gripper:1"'
 

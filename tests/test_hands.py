@@ -1,4 +1,4 @@
-"""Multi-fingered planning: collision repair (:mod:`isf.clearance`) and the planner's hook.
+"""Multi-fingered planning: collision repair (:mod:`isf.repair.clearance`) and the planner's hook.
 
 Independent references: trimesh's signed distance and closest-point queries on the YCB mesh
 (the planner uses neither), the vendor joint limits as Pinocchio read them from the URDF, and
@@ -16,10 +16,10 @@ import trimesh
 
 import isf
 from isf.assets import AssetFetchError, YCBNotFoundError, benchmark_object, vendor_gripper
-from isf.clearance import ClearanceRepair, RepairConfig, repair_penetration
-from isf.collision import CollisionChecker, Plane
-from isf.gripper import ContactSurface, Gripper, LinkGeometry
-from isf.registration import suggest_approach, suggest_contacts, tag_urdf
+from isf.repair.clearance import ClearanceRepair, RepairConfig, repair_penetration
+from isf.collision.checker import CollisionChecker, Plane
+from isf.gripper.model import ContactSurface, Gripper, LinkGeometry
+from isf.registration.tagging import suggest_approach, suggest_contacts, tag_urdf
 
 YCB_NAME = "ycb:TomatoSoupCan"  # 67 mm across, 102 mm tall: a can a hand wraps its fingertips on
 ALLEGRO_TIPS = {"link_3.0_tip", "link_7.0_tip", "link_11.0_tip", "link_15.0_tip"}

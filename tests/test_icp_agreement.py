@@ -6,7 +6,7 @@ import pytest
 from _open3d import import_open3d
 from _builders import bumpy_object, bumpy_patch, parallel_gripper, random_rotation
 from isf.config import FitConfig
-from isf.fit import fit
+from isf.fitting.fit import fit
 from isf.se3 import make_transform, rotation_angle
 
 o3d = import_open3d()  # the test extra installs it; a missing reference must fail, not skip

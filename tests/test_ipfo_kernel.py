@@ -4,12 +4,13 @@ import numpy as np
 import pytest
 
 import isf
-import isf.box_qp
+import isf.fitting._box_qp
 from _builders import random_rotation
-from isf.finger_step import FingerStepQP
-from isf.ipfo import PairBatch, ipfo
+from isf.fitting._finger_step import FingerStepQP
+from isf.fitting._ipfo import ipfo
+from isf.fitting.reference import PairBatch
 from isf.se3 import make_transform
-from isf.segments import Segments
+from isf.fitting.segments import Segments
 
 
 @pytest.fixture(scope="module")
@@ -67,7 +68,7 @@ def test_uncertified_finger_steps_resume_with_osqp(case, monkeypatch):
         return solve_normal(self, *args)
 
     monkeypatch.setattr(FingerStepQP, "solve_normal", counting)
-    monkeypatch.setattr(isf.box_qp, "MAX_ROUNDS", 0)  # no step certified: all go to OSQP
+    monkeypatch.setattr(isf.fitting._box_qp, "MAX_ROUNDS", 0)  # no step certified: all go to OSQP
     osqp = _run(hand, pairs, T0, q0)
     assert calls["osqp"] >= len(T0)
     # the same QPs solved by OSQP instead of the active set: the same fits to OSQP's accuracy

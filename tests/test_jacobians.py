@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from isf.gripper_loading import load_gripper
+from isf.gripper.loading import load_gripper
 
 # Two fingers with two revolute joints each; tilted joint axes and origins so that
 # no Jacobian entry is trivially zero. Pads are boxes on the distal links; the

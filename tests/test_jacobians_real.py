@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 from test_vendor_grippers import tagged_vendor_gripper
 
-from isf.gripper_loading import load_gripper
+from isf.gripper.loading import load_gripper
 
 H = 1e-6  # finite-difference step, metres or radians
 RTOL = 1e-6  # error allowed, relative to the largest entry of the joint's column

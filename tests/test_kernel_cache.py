@@ -1,4 +1,4 @@
-"""isf.kernel_cache: cached kernels are dropped when a module they depend on changes."""
+"""isf.compiled.cache: cached kernels are dropped when a module they depend on changes."""
 
 from __future__ import annotations
 
@@ -7,14 +7,17 @@ import subprocess
 import sys
 import textwrap
 
-from isf.kernel_cache import RECORD, module_digests, refresh
+from isf.compiled.cache import RECORD, module_digests, module_sources, refresh
 
 
 def write_package(root, files: dict[str, str]):
+    """A package ``pkg`` under ``root``; ``files`` maps paths relative to it (without ``.py``,
+    ``/`` for subfolders) to sources."""
     package = root / "pkg"
-    package.mkdir(exist_ok=True)
     for name, text in files.items():
-        (package / f"{name}.py").write_text(textwrap.dedent(text))
+        path = package / f"{name}.py"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(textwrap.dedent(text))
     return package
 
 
@@ -31,20 +34,68 @@ def test_a_digest_covers_every_module_imported_directly_or_not(tmp_path):
     assert {name for name in before if before[name] != after[name]} == {"top", "middle", "bottom"}
 
 
+def test_digests_follow_subpackages_and_every_import_form(tmp_path):
+    package = write_package(tmp_path, {
+        "__init__": "",
+        "fitting/__init__": "from .engine import run\n",
+        "fitting/engine": "from ..search import kdtree\nfrom ..search.grid import cells\n",
+        "search/__init__": "",
+        "search/kdtree": "import pkg.search.leaf\n",
+        "search/leaf": "X = 1\n",
+        "search/grid": "def cells(): ...\n",
+        "search/apart": "import os\nfrom os import path\n",
+        "planning/plan": "def f():\n    from pkg.fitting import run\n",
+    })
+    assert set(module_sources(package)) == {
+        "__init__", "fitting.__init__", "fitting.engine", "search.__init__", "search.kdtree",
+        "search.leaf", "search.grid", "search.apart", "planning.plan"}
+    before = module_digests(package)
+    (package / "search" / "leaf.py").write_text("X = 2\n")  # reached by a plain import
+    after = module_digests(package)
+    # the nested import inside a function counts too; a module's package __init__ runs with it
+    assert {key for key in before if before[key] != after[key]} == {
+        "search.leaf", "search.kdtree", "fitting.engine", "fitting.__init__", "planning.plan"}
+    (package / "search" / "__init__.py").write_text("Y = 1\n")
+    again = module_digests(package)
+    assert {key for key in after if after[key] != again[key]} == {  # those importing from pkg.search
+        "search.__init__", "search.kdtree", "fitting.engine", "fitting.__init__", "planning.plan"}
+
+
 def test_refresh_deletes_the_kernels_of_changed_modules_only(tmp_path):
     cache = tmp_path / "cache"
     cache.mkdir()
     kernels = ["top.f-3.py311.nbi", "top.f-3.py311.1.nbc", "apart.g-1.py311.nbi", "topper.h-1.py311.nbi"]
     for name in kernels:
         (cache / name).write_bytes(b"")
-    assert refresh(cache, {"top": "1", "apart": "1", "topper": "1"}) == ["apart", "top", "topper"]
+    folders = {"top": cache, "apart": cache, "topper": cache}
+    record = cache / RECORD
+
+    def digests(top):
+        return {"top": top, "apart": "1", "topper": "1"}
+
+    assert refresh(digests("1"), folders, record) == ["apart", "top", "topper"]
     for name in kernels:  # no record yet: everything went
         assert not (cache / name).exists()
         (cache / name).write_bytes(b"")
-    assert refresh(cache, {"top": "1", "apart": "1", "topper": "1"}) == []  # nothing changed
-    assert refresh(cache, {"top": "2", "apart": "1", "topper": "1"}) == ["top"]
+    assert refresh(digests("1"), folders, record) == []  # nothing changed
+    assert refresh(digests("2"), folders, record) == ["top"]
     assert sorted(p.name for p in cache.iterdir()) == sorted(
         ["apart.g-1.py311.nbi", "topper.h-1.py311.nbi", RECORD])
+
+
+def test_refresh_finds_each_module_in_its_own_folder(tmp_path):
+    one, two = tmp_path / "one", tmp_path / "two"
+    for folder in (one, two):
+        folder.mkdir()
+        (folder / "kernel.f-3.py311.nbi").write_bytes(b"")  # the same stem in two subpackages
+    folders = {"fitting.kernel": one, "collision.kernel": two}
+    refresh({"fitting.kernel": "1", "collision.kernel": "1"}, folders, tmp_path / RECORD)
+    (one / "kernel.f-3.py311.nbi").write_bytes(b"")
+    (two / "kernel.f-3.py311.nbi").write_bytes(b"")
+    assert refresh({"fitting.kernel": "2", "collision.kernel": "1"}, folders,
+                   tmp_path / RECORD) == ["fitting.kernel"]
+    assert not (one / "kernel.f-3.py311.nbi").exists()
+    assert (two / "kernel.f-3.py311.nbi").exists()
 
 
 def test_a_kernel_runs_the_new_code_of_a_kernel_it_calls_from_another_module(tmp_path):
@@ -53,9 +104,9 @@ def test_a_kernel_runs_the_new_code_of_a_kernel_it_calls_from_another_module(tmp
     package = write_package(tmp_path, {
         "__init__": """
             from pathlib import Path
-            from isf.kernel_cache import module_digests, refresh
+            from isf.compiled.cache import refresh_package
+            refresh_package(Path(__file__).parent)
             from .caller import g
-            refresh(Path(g._cache._cache_path), module_digests(Path(__file__).parent))
         """,
         "callee": """
             from numba import njit

@@ -1,14 +1,15 @@
-"""Leaf kernels (isf.leaf): compiled without reference counting where numba allows it, with the
+"""Leaf kernels (isf.compiled.leaf): compiled without reference counting where numba allows it, with the
 answers of the same function compiled as an ordinary kernel."""
 
 import numpy as np
 from numba import njit
 from numba.core.options import DefaultOptions
 
-from isf import box_qp, moment_kernels
-from isf import leaf as leaf_module
-from isf.leaf import leaf
-from isf.nearest import NearestPoints, nearest_point, tree_nearest
+from isf.fitting import _box_qp as box_qp
+from isf.fitting import moment_kernels
+from isf.compiled import leaf as leaf_module
+from isf.compiled.leaf import leaf
+from isf.search.nearest import NearestPoints, nearest_point, tree_nearest
 
 LEAVES = (nearest_point, tree_nearest, moment_kernels.solve_small, moment_kernels._group_pose,
           moment_kernels._residual, moment_kernels._add_palm_sandwich, moment_kernels._add_sandwich,

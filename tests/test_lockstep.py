@@ -7,11 +7,12 @@ from _builders import random_rotation
 
 import isf
 from isf.config import FitConfig
-from isf.correspondence import match_many
-from isf.finger_step import FingerStepQP
-from isf.ipfo import PairBatch, ipfo
+from isf.fitting.correspondence import match_many
+from isf.fitting._finger_step import FingerStepQP
+from isf.fitting._ipfo import ipfo
+from isf.fitting.reference import PairBatch
 from isf.se3 import make_transform
-from isf.segments import Segments
+from isf.fitting.segments import Segments
 
 
 @pytest.fixture(scope="module")
@@ -30,7 +31,7 @@ def _starts(rng, gripper, n):
 @pytest.mark.parametrize("name", ["paper-parallel", "three-finger"])
 def test_one_round_equals_the_correspondences_and_ipfo_of_the_python_pieces(name, cylinder):
     """One ISF iteration of the engine (one level, one iteration) lands where match_many's pairs
-    and isf.ipfo's alternations (the pair-by-pair correspondence filters and the IPFO driver) do."""
+    and isf.fitting._ipfo's alternations (the pair-by-pair correspondence filters and the IPFO driver) do."""
     gripper = isf.load_gripper(name)
     config = FitConfig(levels=1, max_iterations=1)
     rng = np.random.default_rng(1)
@@ -80,7 +81,7 @@ def test_slots_are_reused_and_grown():
     obj = isf.open_object("shape:cylinder")
     starts = _starts(np.random.default_rng(3), gripper, 20)
     alone = isf.fit_many(gripper, obj, np.stack(starts))
-    fitter = isf.lockstep.LockstepFitter(gripper, obj)
+    fitter = isf.fitting.engine.LockstepFitter(gripper, obj)
     results, added = {}, 0
     while len(results) < len(starts):
         while added < len(starts) and fitter.n_active < 3 + added % 11:
@@ -95,11 +96,11 @@ def test_slots_are_reused_and_grown():
 def test_fits_solved_by_osqp_do_not_depend_on_the_fits_before_them(cylinder, monkeypatch):
     """With every finger step sent to OSQP (no step certified by the active set), fits run
     together, one after another in reused slots, and alone end in the same place."""
-    monkeypatch.setattr(isf.box_qp, "MAX_ROUNDS", 0)
+    monkeypatch.setattr(isf.fitting._box_qp, "MAX_ROUNDS", 0)
     hand = isf.load_gripper("three-finger")
     starts = _starts(np.random.default_rng(4), hand, 5)
     together = isf.fit_many(hand, cylinder, np.stack(starts))
-    fitter = isf.lockstep.LockstepFitter(hand, cylinder)
+    fitter = isf.fitting.engine.LockstepFitter(hand, cylinder)
     for k, T in enumerate(starts):  # one slot, reused by every fit in turn
         fitter.add(k, T)
         while fitter.n_active:

@@ -6,9 +6,9 @@ import numpy as np
 import trimesh
 
 import isf
-from isf.collision import CollisionChecker, object_bvh
-from isf.collision_surface import _MESH_MEMOS, closed_mesh
-from isf.working_surface import working_surface
+from isf.collision.checker import CollisionChecker, object_bvh
+from isf.collision.surface_distance import _MESH_MEMOS, closed_mesh
+from isf.planning._working_surface import working_surface
 
 
 def box_object():

@@ -5,12 +5,12 @@ import pytest
 
 import isf
 from _builders import random_rotation
-from isf.ipfo import PairBatch
-from isf.moment_kernels import solve_small
-from isf.moments import PairMoments
-from isf.palm_step import palm_motions, palm_steps
+from isf.fitting.reference import PairBatch
+from isf.fitting.moment_kernels import solve_small
+from isf.fitting._moments import PairMoments
+from isf.fitting._palm_step import palm_motions, palm_steps
 from isf.se3 import make_transform
-from isf.segments import Segments
+from isf.fitting.segments import Segments
 
 
 @pytest.fixture(scope="module")
@@ -99,7 +99,7 @@ def _dense_sandwich(X, M, rows, cols, weight, out):
 
 @pytest.mark.parametrize("seed", range(3))
 def test_structured_sandwiches_equal_the_full_sums_bit_for_bit(seed):
-    from isf.moment_kernels import _add_palm_sandwich, _add_sandwich
+    from isf.fitting.moment_kernels import _add_palm_sandwich, _add_sandwich
     rng = np.random.default_rng(seed)
     Y = rng.normal(size=(30, 12))
     M = Y.T @ Y  # symmetric, like the pair moments
@@ -133,7 +133,7 @@ def test_group_moments_are_the_pairwise_sums_in_pair_order_bit_for_bit():
     """Each moment entry equals the sum over its group's pairs, in their order from +0, of the
     products that define it (written out pair by pair in Python floats), bit for bit; pairs of
     different groups interleave."""
-    from isf.moment_kernels import group_moments
+    from isf.fitting.moment_kernels import group_moments
     rng = np.random.default_rng(3)
     n_fits, n_links, K = 3, 2, 90
     fit, link = rng.integers(0, n_fits, K), rng.integers(0, n_links, K)

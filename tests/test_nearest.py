@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from isf.nearest import NearestPoints, nearest_point, search_scratch
-from isf.neighbour_graph import neighbour_graph
+from isf.search.nearest import NearestPoints, nearest_point, search_scratch
+from isf.search._neighbour_graph import neighbour_graph
 
 GRAPH = pytest.mark.parametrize("graph", [False, True], ids=["tree", "graph"])
 
@@ -267,7 +267,7 @@ def test_plans_are_the_same_with_and_without_the_graph(monkeypatch):
     """A noisy, partial point cloud planned twice, once with the Delaunay walks and once with the
     k-d tree alone (no graph for any point set): the same grasps, number for number."""
     import isf
-    from isf import neighbour_graph
+    from isf.search import _neighbour_graph as neighbour_graph
 
     rng = np.random.default_rng(2)
     surface = isf.open_object("shape:cylinder")
@@ -306,8 +306,8 @@ def test_a_graph_added_later_changes_no_answer_and_leaves_the_old_arrays_valid()
 
 
 def test_a_deferred_graph_is_built_once_its_searches_have_paid_for_it(monkeypatch):
-    from isf import collision_surface
-    from isf.collision_surface import TangentPlanes
+    from isf.collision import surface_distance as collision_surface
+    from isf.collision.surface_distance import TangentPlanes
 
     monkeypatch.setattr(collision_surface, "GRAPH_PAYBACK", 3)
     points = _surface_cases(np.random.default_rng(6))["cylinder"]  # 600 points
@@ -327,8 +327,8 @@ def test_plans_are_the_same_whether_the_dense_planes_graph_comes_early_or_never(
     """A coarse mesh is resampled densely for the repair; its planes' graph built after the first
     searches (mid-plan) or never: the same grasps, number for number."""
     import isf
-    from isf import collision_surface
-    from isf.collision_surface import mesh_memo
+    from isf.collision import surface_distance as collision_surface
+    from isf.collision.surface_distance import mesh_memo
 
     gripper = isf.load_gripper("three-finger")
 

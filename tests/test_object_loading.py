@@ -1,4 +1,4 @@
-"""Tests of isf.object_loading: every reader, normals against analytic shapes, every error."""
+"""Tests of isf.object.loading: every reader, normals against analytic shapes, every error."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ import trimesh
 from scipy.spatial import cKDTree
 
 from isf.exceptions import InvalidInputError, ObjectLoadError
-from isf.object_loading import load_object
+from isf.object.loading import load_object
 
 RNG_SEED = 7
 CENTRE = np.array([0.1, -0.2, 0.3])

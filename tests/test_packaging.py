@@ -25,13 +25,13 @@ def test_wheel_installs_and_loads_bundled_grippers(tmp_path):
     names = zipfile.ZipFile(wheel).namelist()
     for gripper in ("paper-parallel", "flat-parallel", "three-finger"):
         assert f"isf/_bundled_grippers/{gripper}/{gripper}.urdf" in names
-    assert "isf/plan.schema.json" in names
+    assert "isf/planning/plan.schema.json" in names
 
     site = tmp_path / "site"
     subprocess.run([sys.executable, "-m", "pip", "install", "--no-deps", "-q", "--target", str(site),
                     str(wheel)], check=True, capture_output=True, timeout=300)
-    code = ("import isf, isf.bundled; print(isf.__file__); print(isf.bundled.bundled_gripper_dir()); "
-            "print(sorted(isf.bundled.bundled_grippers())); "
+    code = ("import isf, isf.gripper.bundled; print(isf.__file__); print(isf.gripper.bundled.bundled_gripper_dir()); "
+            "print(sorted(isf.gripper.bundled.bundled_grippers())); "
             "g = isf.load_gripper('paper-parallel'); print(g.n_points)")
     env = dict(os.environ, PYTHONPATH=str(site))
     out = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env=env, capture_output=True,

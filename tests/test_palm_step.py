@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from _builders import random_rotation
-from isf.palm_step import palm_step
+from isf.fitting._palm_step import palm_step
 from isf.se3 import exp_so3, rotation_angle, skew
 
 

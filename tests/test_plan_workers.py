@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import isf
-from isf.clearance import ClearanceRepair, repair_penetration
+from isf.repair.clearance import ClearanceRepair, repair_penetration
 
 
 @pytest.fixture(scope="module")
@@ -55,7 +55,7 @@ def _window_reference(gripper, obj, samples, seed, window, repair_config=None):
             pending.append((proposed, proposal, evaluate(proposal)))
             proposed += 1
         index, proposal, (fit, report) = pending.popleft()
-        error = fit.mean_distance if fit.all_surfaces_in_contact else isf.planner.NO_CONTACT_ERROR
+        error = fit.mean_distance if fit.all_surfaces_in_contact else isf.planning.planner.NO_CONTACT_ERROR
         sampler.observe([isf.Outcome(proposal, error=error, collision_free=report.collision_free)])
         grasps[index] = (fit, report)
     return grasps, kept_repairs
@@ -68,7 +68,7 @@ def _by_index(result):
 @pytest.mark.parametrize("workers", [1, 2, 3])
 def test_workers_give_the_window_protocol_grasps(hand, block, workers):
     samples = 9
-    window = 1 if workers == 1 else isf.planner.SAMPLES_PER_WORKER * workers
+    window = 1 if workers == 1 else isf.planning.planner.SAMPLES_PER_WORKER * workers
     expected, kept_repairs = _window_reference(hand, block, samples, seed=2, window=window)
     assert kept_repairs >= 1  # the repair path ran and was used
     result = isf.plan(hand, block, samples=samples, seed=2, workers=workers, working_spacing=None)
@@ -93,7 +93,7 @@ def _assert_same_grasps(result, expected):
 @pytest.mark.parametrize("workers", [1, 2])
 def test_a_repair_config_reaches_every_repair(hand, block, workers):
     config = isf.RepairConfig(max_rows=6, iterations=3)
-    window = 1 if workers == 1 else isf.planner.SAMPLES_PER_WORKER * workers
+    window = 1 if workers == 1 else isf.planning.planner.SAMPLES_PER_WORKER * workers
     expected, _ = _window_reference(hand, block, 8, seed=2, window=window, repair_config=config)
     default, _ = _window_reference(hand, block, 8, seed=2, window=window)
     # the parameters change some repaired grasp here, so a plan that ignored them would differ

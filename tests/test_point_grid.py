@@ -1,4 +1,4 @@
-"""isf.point_grid against brute force: every point of a ball (and of a box) is listed, each once."""
+"""isf.search.point_grid against brute force: every point of a ball (and of a box) is listed, each once."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from isf.point_grid import MAX_CELLS, PointGrid, ball_box_candidates
+from isf.search.point_grid import MAX_CELLS, PointGrid, ball_box_candidates
 
 
 def _candidates(grid: PointGrid, centre, radius) -> np.ndarray:

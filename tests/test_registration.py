@@ -22,7 +22,7 @@ import trimesh
 
 import isf
 from isf.assets import AssetFetchError, YCBNotFoundError, benchmark_object, vendor_gripper
-from isf.registration import (
+from isf.registration.tagging import (
     ContactSpec,
     RegistrationError,
     suggest_approach,

@@ -1,14 +1,14 @@
-"""The repair's compiled contact pairs (isf.repair_contacts) are match_many's pairs, with the
+"""The repair's compiled contact pairs (isf.repair._contacts) are match_many's pairs, with the
 surfaces as groups, of the contact points the gripper's kinematics place."""
 
 import numpy as np
 import pytest
 
 import isf
-from isf.correspondence import match_many
-from isf.repair_contacts import contact_pairs
+from isf.fitting.correspondence import match_many
+from isf.repair._contacts import contact_pairs
 from isf.se3 import exp_so3, make_transform
-from isf.segments import Segments
+from isf.fitting.segments import Segments
 
 
 @pytest.fixture(scope="module")

@@ -1,7 +1,7 @@
 """The collision repair's row selection against brute force.
 
-The repair (isf.clearance) computes a clearance row in full only when it may be used by a step
-or be the deepest row: these tests compare its kernels (isf.repair_rows, the pruned
+The repair (isf.repair.clearance) computes a clearance row in full only when it may be used by a step
+or be the deepest row: these tests compare its kernels (isf.repair.rows, the pruned
 convex-element rows) and its rows at whole states with straightforward numpy versions that
 compute every row.
 """
@@ -13,12 +13,12 @@ import pytest
 import trimesh
 
 import isf
-from isf.clearance import ClearanceRepair
-from isf.collision_surface import NEIGHBOURS
-from isf.convex_elements import ConvexElements, _reach_box
-from isf.point_grid import PointGrid
-from isf.repair_rows import deepest_rows, undecided
-from isf.repair_step import to_object
+from isf.repair.clearance import ClearanceRepair
+from isf.collision.surface_distance import NEIGHBOURS
+from isf.collision.convex_elements import ConvexElements, _reach_box
+from isf.search.point_grid import PointGrid
+from isf.repair.rows import deepest_rows, undecided
+from isf.repair._step import to_object
 
 ACTIVATION, MAX_ROWS = 0.008, 12
 
@@ -218,7 +218,7 @@ def test_only_samples_near_or_inside_the_object_get_rows(hand_on_cylinder, keep_
     """Samples far outside the object get no row; samples deep inside do, however far from the
     surface (inside told by the mesh's voxels, or for a point cloud by the nearest point's
     plane)."""
-    from isf.clearance import _NO_ROWS
+    from isf.repair.clearance import _NO_ROWS
 
     gripper, cylinder = hand_on_cylinder
     obj = cylinder if keep_mesh else isf.ObjectSurface(cylinder.points, cylinder.normals,

@@ -1,4 +1,4 @@
-"""The compiled arithmetic of a repair step (isf.repair_step) against independent computations:
+"""The compiled arithmetic of a repair step (isf.repair._step) against independent computations:
 homogeneous transforms, finite differences of the real kinematics, and the QP written out with
 numpy."""
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import isf
-from isf.repair_step import motion_rows, step_qp, to_object
+from isf.repair._step import motion_rows, step_qp, to_object
 from isf.se3 import exp_so3, make_transform
 
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from isf.exceptions import ConfigError
-from isf.object_surface import ObjectSurface
+from isf.object.surface import ObjectSurface
 from isf.samplers import (
     Outcome,
     Proposal,

@@ -1,7 +1,7 @@
 """Stock vendor URDFs (fetched by :mod:`isf.assets`) as isf reads and loads them.
 
 Expectations come from outside isf: the vendor file itself, read by the small
-ElementTree reader below (it shares no code with :mod:`isf.urdf_tags`), the raw
+ElementTree reader below (it shares no code with :mod:`isf.gripper.urdf_tags`), the raw
 mesh files read by trimesh, and yourdfpy's forward kinematics (a second
 implementation that handles mimic joints itself).
 
@@ -24,8 +24,8 @@ import trimesh
 import yourdfpy
 
 from isf import assets
-from isf.gripper import Gripper
-from isf.gripper_loading import inspect_gripper, load_gripper
+from isf.gripper.model import Gripper
+from isf.gripper.loading import inspect_gripper, load_gripper
 
 VENDORS = ("franka-hand", "robotiq-2f-85", "allegro-right", "pr2-gripper")
 ISF_NS = "urn:isf:gripper:1"  # docs/gripper-tags.md

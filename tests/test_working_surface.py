@@ -7,8 +7,8 @@ from scipy.spatial import cKDTree
 
 import isf
 from isf.exceptions import InvalidInputError
-from isf.object_surface import ObjectSurface
-from isf.working_surface import SPACING_FACTOR, contact_spacing, working_spacing, working_surface
+from isf.object.surface import ObjectSurface
+from isf.planning._working_surface import SPACING_FACTOR, contact_spacing, working_spacing, working_surface
 
 
 @pytest.fixture(scope="module")

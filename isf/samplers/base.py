@@ -32,8 +32,8 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 
 if TYPE_CHECKING:
-    from ..gripper import Gripper
-    from ..object_surface import ObjectSurface
+    from ..gripper.model import Gripper
+    from ..object.surface import ObjectSurface
 
 __all__ = [
     "Outcome",

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..exceptions import ConfigError, GripperDescriptionError
-from ..gripper import Gripper
+from ..gripper.model import Gripper
 from ..se3 import exp_so3, skew
 from .base import random_rotation
 

@@ -31,8 +31,8 @@ from .base import Outcome, Proposal, Sampler, place_gripper
 from .orientation import check_orientation, initial_rotations, resolve_approach
 
 if TYPE_CHECKING:
-    from ..gripper import Gripper
-    from ..object_surface import ObjectSurface
+    from ..gripper.model import Gripper
+    from ..object.surface import ObjectSurface
 
 __all__ = ["RegretSampler"]
 

@@ -6,8 +6,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..gripper import Gripper
-from ..object_surface import ObjectSurface
+from ..gripper.model import Gripper
+from ..object.surface import ObjectSurface
 from .base import Proposal, Sampler, place_gripper
 from .orientation import check_orientation, initial_rotations, resolve_approach
 

@@ -15,8 +15,8 @@ from isf.samplers import Proposal, Sampler, place_gripper
 from isf.samplers.orientation import approach_direction, initial_rotations
 
 if TYPE_CHECKING:
-    from isf.gripper import Gripper
-    from isf.object_surface import ObjectSurface
+    from isf.gripper.model import Gripper
+    from isf.object.surface import ObjectSurface
 
 __all__ = ["NormalSampler", "__version__"]
 

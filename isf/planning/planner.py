@@ -1,0 +1,362 @@
+"""Grasp planning by guided sampling (paper Algorithm 3): :func:`plan`.
+
+Each sample takes an initial pose from the sampler, runs ISF, checks the fitted
+gripper for collisions (:class:`isf.collision.checker.CollisionChecker`) and reports the
+outcome back to the sampler, which uses it to guide the next proposal (the regret
+bandit does; the uniform sampler ignores it).
+
+By default the samples run one after another, as in the paper's loop: propose, fit,
+check, observe. With ``batch_size > 1`` up to ``batch_size`` samples are fitted at once,
+in lockstep (:class:`isf.fitting.engine.LockstepFitter`): each keeps its own ISF state and stop
+rule, and a finished sample is checked, reported to the sampler and replaced by a new
+proposal straight away, so the sampler learns from every outcome with a delay of at most
+``batch_size - 1`` samples. A sampler may hold fewer in flight
+(:meth:`isf.Sampler.in_flight_limit`; the regret sampler does while it explores). The ISF
+rounds are compiled (:mod:`isf.fitting.engine_kernel`), so a batch no longer saves time; it is
+there for samplers that propose in batches.
+
+With ``workers = W > 1`` the samples run on W threads (the compiled fitting, checking and
+repair release Python's GIL, so the threads share the cores): each thread fits, checks and
+repairs one sample at a time (:class:`isf.planning._evaluation.SampleWorker`). Samples are proposed in
+order with at most ``SAMPLES_PER_WORKER * W`` in flight (``2W``), and their outcomes are
+reported to the sampler in order, so sample ``i + 2W`` is proposed once sample ``i`` is
+observed: the sampler learns every outcome at most ``2W - 1`` samples late, and the plan
+depends on W and the seed but not on the threads' timing. The window is twice the threads so
+that a thread whose sample ended early takes the next one instead of waiting for a slower
+sample ahead of it to be observed. Each fit is the fit it would be alone.
+
+A fitted grasp that collides is repaired once (``repair_collisions``, on by default;
+:mod:`isf.repair.clearance`): the links that penetrate are pushed out while the contact surfaces
+are pulled back onto the object, and the repaired grasp replaces the fit when the re-check
+finds it collision-free. Multi-fingered hands need this: ISF fits only the tagged fingertip
+surfaces, and the links behind them can end inside the object.
+
+Ranking: collision-free grasps first, then grasps whose every contact surface
+touches the object, then by mean point-to-plane distance (lower first).
+"""
+
+from __future__ import annotations
+
+import queue
+import time
+from collections import deque
+from collections.abc import Callable, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..repair.clearance import RepairConfig
+from ..collision.checker import CollisionReport, Plane
+from ..config import FitConfig
+from ._evaluation import SampleJudge, SampleWorker
+from ..gripper.model import Gripper
+from ..fitting.engine import LockstepFitter
+from ..object.surface import ObjectSurface
+from ..result import FitResult
+from ..samplers import Outcome, Proposal, Sampler, get_sampler
+from ._working_surface import resolve_spacing, working_surface
+
+__all__ = ["Grasp", "PlanResult", "PlanStats", "plan"]
+
+BATCH_SIZE = 1
+"""Default number of samples fitted at once by :func:`plan`: one, the paper's sequential loop
+(see the module docstring)."""
+
+SAMPLES_PER_WORKER = 2
+"""Samples :func:`plan` keeps in flight per worker thread when ``workers > 1`` (see the module
+docstring)."""
+
+NO_CONTACT_ERROR = 0.05
+"""Error reported to samplers for a fit where some contact surface does not touch the object, metres."""
+
+
+@dataclass(frozen=True, eq=False)
+class Grasp:
+    """One evaluated sample.
+
+    Attributes:
+        fit: the ISF result (pose ``T_object_gripper``, joints, errors, history).
+        collision: the collision report of the fitted gripper.
+        sampler_record: what the sampler recorded for this sample (JSON-serialisable).
+        sample_index: position of the sample in the planning run, from 0.
+    """
+
+    fit: FitResult
+    collision: CollisionReport
+    sampler_record: dict
+    sample_index: int
+
+    @property
+    def T_object_gripper(self) -> np.ndarray:
+        """Pose of the gripper frame in the object frame, (4, 4)."""
+        return self.fit.T_object_gripper
+
+    @property
+    def q(self) -> np.ndarray:
+        """Joint vector, (n_joints,), metres or radians."""
+        return self.fit.q
+
+    @property
+    def joints(self) -> dict[str, float]:
+        """Joint values by name, metres or radians."""
+        return self.fit.joints
+
+    @property
+    def collision_free(self) -> bool:
+        """True when no link penetrates the object or an obstacle beyond the tolerance."""
+        return self.collision.collision_free
+
+    @property
+    def valid(self) -> bool:
+        """Collision-free and every contact surface touches the object."""
+        return self.collision.collision_free and self.fit.all_surfaces_in_contact
+
+    def sort_key(self) -> tuple:
+        """Ranking key: collision-free, then all surfaces touching, then mean distance."""
+        return (not self.collision_free, not self.fit.all_surfaces_in_contact,
+                self.fit.mean_distance, self.sample_index)
+
+
+@dataclass(frozen=True)
+class PlanStats:
+    """Figures of one planning run.
+
+    Attributes:
+        samples: samples evaluated.
+        collision_free: collision-free grasps.
+        valid: collision-free grasps whose every contact surface touches the object.
+        total_time: wall time of the whole run (set-up included), seconds.
+        time_per_collision_free: ``total_time / collision_free`` (inf when none), seconds.
+        fit_time: time spent in ISF and in repairs, seconds (summed over the worker threads,
+            so with ``workers > 1`` it may exceed ``total_time``).
+        collision_time: time spent in collision checks, seconds (summed likewise).
+        setup_time: time to prepare the sampler and the collision checker, seconds.
+        batch_size: samples fitted at once (see :func:`plan`).
+        surface_points: object points the run matched against (see ``working_spacing`` of
+            :func:`plan`); 0 when not recorded.
+        workers: threads that evaluated samples (see :func:`plan`).
+    """
+
+    samples: int
+    collision_free: int
+    valid: int
+    total_time: float
+    time_per_collision_free: float
+    fit_time: float
+    collision_time: float
+    setup_time: float
+    batch_size: int = 1
+    surface_points: int = 0
+    workers: int = 1
+
+
+@dataclass(frozen=True, eq=False)
+class PlanResult:
+    """Every evaluated grasp, ranked best first, with the run's figures.
+
+    Attributes:
+        grasps: all evaluated grasps, ranked (see the module docstring).
+        stats: timings and counts.
+        gripper: the gripper's name.
+        object: the object's name.
+        sampler: the sampler's name.
+        seed: the seed the run used.
+        config: the fit parameters.
+        repair: the collision repair's parameters; None when the run did not repair.
+    """
+
+    grasps: tuple[Grasp, ...]
+    stats: PlanStats
+    gripper: str
+    object: str
+    sampler: str
+    seed: int | None
+    config: FitConfig = field(default_factory=FitConfig)
+    repair: RepairConfig | None = None
+
+    @property
+    def best(self) -> Grasp | None:
+        """The top-ranked grasp, or None if no sample was evaluated."""
+        return self.grasps[0] if self.grasps else None
+
+    def collision_free_grasps(self) -> list[Grasp]:
+        """The collision-free grasps, ranked."""
+        return [g for g in self.grasps if g.collision_free]
+
+
+def _slots(sampler: Sampler, batch_size: int) -> int:
+    """Samples to keep in flight: the batch size, or fewer when the sampler asks for it."""
+    limit = sampler.in_flight_limit()
+    return batch_size if limit is None else max(1, min(batch_size, int(limit)))
+
+
+def plan(
+    gripper: Gripper | str | Path,
+    obj: ObjectSurface | str | Path | np.ndarray,
+    samples: int = 60,
+    sampler: str | Sampler | type[Sampler] = "regret",
+    seed: int | None = 0,
+    config: FitConfig | None = None,
+    *,
+    obstacles: Sequence[Plane] = (),
+    collision_tolerance: float = 0.002,
+    batch_size: int = BATCH_SIZE,
+    workers: int = 1,
+    repair_collisions: bool | RepairConfig = True,
+    working_spacing: float | str | None = "auto",
+    progress: Callable[[int, int, Grasp], None] | None = None,
+) -> PlanResult:
+    """Plan grasps of an object with a gripper (Algorithm 3).
+
+    Args:
+        gripper: a :class:`Gripper`, a bundled gripper name or a URDF path.
+        obj: an :class:`ObjectSurface`, a mesh or point-cloud path, or an (N, 3)/(N, 6) array (metres).
+        samples: number of samples ``K_s`` to evaluate.
+        sampler: a registered sampler name (see :func:`isf.available_samplers`), class or instance.
+        seed: seed of the run's random generator; the same seed gives the same result.
+        config: ISF parameters; default the paper's.
+        obstacles: half-spaces the gripper must not enter (e.g. ``Plane.table(z)``), object frame.
+        collision_tolerance: penetration depth tolerated before a grasp counts as colliding, metres.
+        batch_size: samples fitted at once in lockstep, in one thread (see the module
+            docstring); 1 is the paper's loop.
+        workers: threads that fit, check and repair samples side by side (see the module
+            docstring); 1 (default) plans in the calling thread. Exclusive with ``batch_size > 1``.
+        repair_collisions: when a fitted grasp collides, run :func:`isf.repair.clearance.repair_penetration`
+            on it (links pushed out of the object and obstacles while the contact surfaces are
+            pulled back onto the object) and keep the repaired grasp if the re-check finds it
+            collision-free. Its time counts as fit time, its re-check as collision time. False
+            gives the paper's Algorithm 3. A :class:`isf.RepairConfig` repairs with
+            those parameters (True: the defaults, measured against other settings in
+            docs/hands.md).
+        progress: called after each sample as ``progress(done, total, grasp)``.
+
+    Returns:
+        the ranked :class:`PlanResult`.
+
+    Raises:
+        InvalidInputError: ``samples``, ``batch_size`` or ``workers`` is not a positive
+            integer, both ``batch_size`` and ``workers`` exceed 1, ``repair_collisions`` is
+            neither a bool nor a :class:`isf.RepairConfig`,
+            ``working_spacing`` is neither "auto", None nor a spacing > 0, or the
+            sampler proposed an invalid pose or joint vector.
+        GripperDescriptionError, ObjectLoadError, SamplerNotFound: bad gripper, object or sampler.
+    """
+    from ..exceptions import InvalidInputError
+    from ..gripper.loading import load_gripper
+    from ..object.loading import load_object
+
+    started = time.perf_counter()
+    for name, value in (("samples", samples), ("batch_size", batch_size), ("workers", workers)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+            raise InvalidInputError(f"{name} must be a positive integer, got {value!r}")
+    if workers > 1 and batch_size > 1:
+        raise InvalidInputError(f"batch_size={batch_size} and workers={workers}: choose lockstep "
+                                "batches or worker threads, not both (set one of them to 1)")
+    if not isinstance(repair_collisions, (bool, RepairConfig)):
+        raise InvalidInputError(
+            f"repair_collisions must be True, False or an isf.RepairConfig, got "
+            f"{type(repair_collisions).__name__}; pass e.g. isf.RepairConfig(iterations=10)")
+    config = FitConfig() if config is None else config
+    gripper = gripper if isinstance(gripper, Gripper) else load_gripper(gripper)
+    obj = obj if isinstance(obj, ObjectSurface) else load_object(obj)
+    obj = working_surface(obj, resolve_spacing(working_spacing, gripper))
+    sampler = get_sampler(sampler)
+    rng = np.random.default_rng(seed)
+    sampler.reset(obj, gripper, rng)
+    options = dict(obstacles=obstacles, tolerance=collision_tolerance, repair=repair_collisions)
+
+    grasps: list[Grasp] = []
+
+    def record(index: int, proposal: Proposal, result: FitResult,
+               report: CollisionReport) -> Outcome:
+        """Keep a sample's grasp and return its outcome for the sampler."""
+        grasp = Grasp(result, report, dict(proposal.record), index)
+        grasps.append(grasp)
+        if progress is not None:
+            progress(len(grasps), samples, grasp)
+        error = result.mean_distance if result.all_surfaces_in_contact else NO_CONTACT_ERROR
+        return Outcome(proposal, error=error, collision_free=report.collision_free)
+
+    if workers == 1:
+        judges = [SampleJudge(gripper, obj, config, **options)]
+        fitter = LockstepFitter(gripper, obj, config)
+        setup_time = time.perf_counter() - started
+        fit_time = _in_lockstep(sampler, rng, samples, batch_size, fitter, judges[0], record)
+    else:
+        judges = [SampleWorker(gripper, obj, config, **options) for _ in range(workers)]
+        setup_time = time.perf_counter() - started
+        _in_threads(sampler, rng, samples, judges, record)
+        fit_time = 0.0
+    fit_time += sum(j.fit_time for j in judges)
+    collision_time = sum(j.collision_time for j in judges)
+
+    grasps.sort(key=Grasp.sort_key)
+    total = time.perf_counter() - started
+    n_free = sum(g.collision_free for g in grasps)
+    stats = PlanStats(
+        samples=samples, collision_free=n_free, valid=sum(g.valid for g in grasps),
+        total_time=total, time_per_collision_free=total / n_free if n_free else float("inf"),
+        fit_time=fit_time, collision_time=collision_time, setup_time=setup_time,
+        batch_size=int(batch_size), surface_points=obj.n_points, workers=int(workers),
+    )
+    repairer = judges[0].repairer  # the parameters the run repaired with, as the judges took them
+    return PlanResult(tuple(grasps), stats, gripper.name, obj.name, sampler.name, seed, config,
+                      None if repairer is None else repairer.config)
+
+
+def _in_lockstep(sampler: Sampler, rng: np.random.Generator, samples: int, batch_size: int,
+                 fitter: LockstepFitter, judge: SampleJudge, record: Callable) -> float:
+    """The samples in one thread, up to ``batch_size`` fitted in lockstep, each observed as soon
+    as it finishes; returns the seconds spent fitting."""
+    proposals: dict[int, Proposal] = {}
+    done, fit_time = 0, 0.0
+    while done < samples:
+        while fitter.n_active < _slots(sampler, batch_size) and len(proposals) + done < samples:
+            (proposal,) = sampler.propose(1, rng)
+            index = len(proposals) + done
+            fitter.add(index, proposal.T_object_gripper, proposal.q)
+            proposals[index] = proposal
+        t0 = time.perf_counter()
+        finished = fitter.advance()
+        fit_time += time.perf_counter() - t0
+        outcomes = [record(index, proposals.pop(index), *judge.judge(result))
+                    for index, result in sorted(finished, key=lambda item: item[0])]
+        done += len(outcomes)
+        if outcomes:
+            sampler.observe(outcomes)
+    return fit_time
+
+
+def _in_threads(sampler: Sampler, rng: np.random.Generator, samples: int,
+                workers: list[SampleWorker], record: Callable) -> None:
+    """The samples on ``len(workers)`` threads: proposed in order, at most
+    :data:`SAMPLES_PER_WORKER` per worker in flight, and observed in order, so the sampler sees
+    what it would see with that window whatever the threads' timing."""
+    idle: queue.SimpleQueue[SampleWorker] = queue.SimpleQueue()
+    for worker in workers:
+        idle.put(worker)
+
+    def evaluate(proposal: Proposal):
+        worker = idle.get()  # never waits: no more tasks run than there are workers
+        try:
+            return worker.evaluate(proposal.T_object_gripper, proposal.q)
+        finally:
+            idle.put(worker)
+
+    pending: deque[tuple[int, Proposal, Future]] = deque()
+    proposed = 0
+    with ThreadPoolExecutor(len(workers), thread_name_prefix="isf-plan") as pool:
+        try:
+            while pending or proposed < samples:
+                while proposed < samples and len(pending) < _slots(
+                        sampler, SAMPLES_PER_WORKER * len(workers)):
+                    (proposal,) = sampler.propose(1, rng)
+                    pending.append((proposed, proposal, pool.submit(evaluate, proposal)))
+                    proposed += 1
+                index, proposal, future = pending.popleft()
+                sampler.observe([record(index, proposal, *future.result())])
+        finally:
+            for *_, future in pending:
+                future.cancel()
