@@ -61,19 +61,19 @@ if _LATE:  # the variables above came too late for these libraries
     print(f"# warning: {_LATE} imported before bench/_common.py; thread pinning may not apply",
           file=sys.stderr)
 
-import argparse  # noqa: E402
-import ctypes  # noqa: E402
-import dataclasses  # noqa: E402
-import datetime  # noqa: E402
-import hashlib  # noqa: E402
-import importlib  # noqa: E402
-import platform  # noqa: E402
-import statistics  # noqa: E402
-import subprocess  # noqa: E402
-import time  # noqa: E402
-from collections.abc import Callable, Sequence  # noqa: E402
-from dataclasses import dataclass  # noqa: E402
-from pathlib import Path  # noqa: E402
+import argparse
+import ctypes
+import dataclasses
+import datetime
+import hashlib
+import importlib
+import platform
+import statistics
+import subprocess
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -416,8 +416,8 @@ _START_FINGERPRINT: str | None = None
 
 
 def source_fingerprint() -> str:
-    """Short hash of the ``isf/*.py`` sources, to tie results to the exact code measured
-    (the package is edited between commits)."""
+    """Short hash of the package's sources (``isf/**/*.py``), to tie results to the exact code
+    measured (the package is edited between commits)."""
     digest = hashlib.sha256()
     for path in sorted((REPO / "isf").rglob("*.py")):
         digest.update(path.relative_to(REPO).as_posix().encode())
@@ -433,7 +433,7 @@ def machine_description() -> str:
     import scipy
 
     import isf
-    from isf.compiled.warming import warm_up
+    from isf.warming import warm_up
 
     kernels = warm_up()
 
@@ -448,9 +448,9 @@ def machine_description() -> str:
         f"{datetime.datetime.now().isoformat(timespec='seconds')}; CPU: {cpu_model()}, "
         f"{os.cpu_count()} logical cores ({usable} usable); load average (1/5/15 min) at start: "
         f"{load}; {threads}; Python {platform.python_version()}, numpy {numpy.__version__}, "
-        f"scipy {scipy.__version__}, numba {numba.__version__} (isf's kernels compiled or loaded in "
-        f"{kernels:.1f} s before timing), isf {isf.__version__} at git {commit}"
-        f"{' with uncommitted changes in isf/' if dirty else ''} (isf/*.py sha256 "
+        f"scipy {scipy.__version__}, numba {numba.__version__} (isf's kernels compiled or "
+        f"loaded in {kernels:.1f} s before timing), isf {isf.__version__} at git {commit}"
+        f"{' with uncommitted changes in isf/' if dirty else ''} (isf/**/*.py sha256 "
         f"{_START_FINGERPRINT})."
     )
 
@@ -605,7 +605,7 @@ def finish(title: str, sections: Sequence[str], started: float, header: str,
     changed = _START_FINGERPRINT is not None and source_fingerprint() != _START_FINGERPRINT
     warning = []
     if changed:
-        warning.append(f"Note: isf/*.py changed on disk during the run (sha256 now "
+        warning.append(f"Note: isf's sources changed on disk during the run (sha256 now "
                        f"{source_fingerprint()}); the process measured the modules it imported "
                        "at start-up.")
     text = "\n\n".join([

@@ -15,13 +15,13 @@ Run from the repository root:
 
 from __future__ import annotations
 
-import _common  # noqa: I001  (first: pins BLAS/OpenMP threads before numpy is imported)
+import _common
 
-import statistics  # noqa: E402
-import time  # noqa: E402
+import statistics
+import time
 
-import isf  # noqa: E402
-from table1 import DEFAULT_OBJECTS, GRIPPER, MAX_POINTS, paper_sampler  # noqa: E402
+import isf
+from table1 import DEFAULT_OBJECTS, GRIPPER, MAX_POINTS, paper_sampler
 
 
 def main() -> None:

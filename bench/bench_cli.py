@@ -2,7 +2,7 @@
 
 Every measurement runs in fresh processes, as a user's commands do:
 
-* ``import isf`` and ``isf.compiled.warming.warm_up()`` (loading the compiled kernels from numba's
+* ``import isf`` and ``isf.warming.warm_up()`` (loading the compiled kernels from numba's
   cache), timed inside a fresh interpreter;
 * ``isf plan`` of the ``--objects`` (default: the five shapes isf makes) in one run, writing one
   JSON each with ``--out-dir``, against one ``isf plan`` per object: wall time of the whole
@@ -17,19 +17,19 @@ Run from the repository root:
 
 from __future__ import annotations
 
-import _common  # noqa: I001  (first: pins BLAS/OpenMP threads before numpy is imported)
+import _common
 
-import json  # noqa: E402
-import subprocess  # noqa: E402
-import sys  # noqa: E402
-import tempfile  # noqa: E402
-import time  # noqa: E402
-from pathlib import Path  # noqa: E402
+import json
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
 
 GRIPPER = "paper-parallel"
 OBJECTS = "shape:cylinder,shape:box,shape:sphere,shape:capsule,shape:torus"
 START_UP = ("import json, time; t0 = time.perf_counter(); import isf; t1 = time.perf_counter(); "
-            "from isf.compiled.warming import warm_up; warm_up(); t2 = time.perf_counter(); "
+            "from isf.warming import warm_up; warm_up(); t2 = time.perf_counter(); "
             "print(json.dumps({'import': t1 - t0, 'kernels': t2 - t1}))")
 
 
@@ -94,7 +94,7 @@ def main() -> None:
     ratio = _common.Timing(tuple(row["apart"] / row["together"] for row in rows), args.repeats)
     table = _common.markdown_table(["what", "seconds, median (min-max)"], [
         ["`import isf`, fresh interpreter", timing["import"].spread()],
-        ["`isf.compiled.warming.warm_up()` after it (loading the cached kernels)",
+        ["`isf.warming.warm_up()` after it (loading the cached kernels)",
          timing["kernels"].spread()],
         [f"`isf plan` of the {len(objects)} objects in one run (`--out-dir`)",
          timing["together"].spread()],

@@ -15,7 +15,7 @@ Allegro on ``asset:ycb:TomatoSoupCan``, or a shape when YCB is absent) and, over
 how many poses get a different ``collision_free`` or ``colliding_links``; a disagreement is
 *explained* when the baseline's penetration lies within 0.1 mm of the 2 mm tolerance.
 
-The Allegro hand is tagged as the tests do (``isf.registration.tagging.suggest_contacts`` and
+The Allegro hand is tagged as the tests do (``isf.registration.suggest_contacts`` and
 ``tag_urdf`` with ``suggest_approach``) into a temporary folder.
 
 Also reported: the exact tangent-plane estimates per check (``CollisionChecker.estimates``;
@@ -30,19 +30,19 @@ reused when they exist, so iterating re-runs neither the plans nor the slow base
 
 from __future__ import annotations
 
-import _common  # noqa: I001  (first: pins BLAS/OpenMP threads before numpy is imported)
+import _common
 
-import argparse  # noqa: E402
-import json  # noqa: E402
-import os  # noqa: E402
-import statistics  # noqa: E402
-import subprocess  # noqa: E402
-import sys  # noqa: E402
-import tempfile  # noqa: E402
-import time  # noqa: E402
-from pathlib import Path  # noqa: E402
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
 
-import numpy as np  # noqa: E402
+import numpy as np
 
 YCB = "asset:ycb:TomatoSoupCan"
 #: (gripper, object, in the corpus, timed): the corpus pairs and the timed configurations.
@@ -66,7 +66,7 @@ def ycb_present() -> bool:
 
     try:
         assets.benchmark_object(YCB.removeprefix("asset:"))
-    except Exception:  # noqa: BLE001  (any failure: YCB is absent here)
+    except Exception:
         return False
     return True
 
@@ -82,7 +82,7 @@ def load_gripper(name: str, workdir: Path):
     if name != "allegro-right":
         return isf.load_gripper(name)
     from isf.assets import vendor_gripper
-    from isf.registration.tagging import suggest_approach, suggest_contacts, tag_urdf
+    from isf.registration import suggest_approach, suggest_contacts, tag_urdf
 
     src = vendor_gripper(name)
     preview = tag_urdf(src, workdir / f"{name}.urdf", suggest_contacts(src, points=64),
@@ -114,7 +114,7 @@ def build_corpus(path: Path, workdir: Path, quick: bool) -> None:
     import isf
 
     arrays, rng = {}, np.random.default_rng(1)
-    for gname, ospec, in_corpus, timed in PAIRS:
+    for gname, ospec, in_corpus, _timed in PAIRS:
         gripper = load_gripper(gname, workdir)
         obj = isf.open_object(object_spec(ospec))
         t0 = time.perf_counter()

@@ -13,16 +13,16 @@ Run from the repository root:  python bench/bench_fit.py [--quick] [--repeats 30
 
 from __future__ import annotations
 
-import _common  # noqa: I001  (first: pins BLAS/OpenMP threads before numpy is imported)
+import _common
 
-import statistics  # noqa: E402
-import time  # noqa: E402
+import statistics
+import time
 
-import numpy as np  # noqa: E402
-import trimesh  # noqa: E402
+import numpy as np
+import trimesh
 
-import isf  # noqa: E402
-from isf.samplers import place_gripper, random_rotation  # noqa: E402
+import isf
+from isf.samplers import place_gripper, random_rotation
 
 ROWS = (("paper-parallel", "cylinder r8 mm"), ("paper-parallel", "bunny 8 cm"),
         ("three-finger", "sphere r25 mm"))

@@ -20,13 +20,14 @@ time per collision-free grasp; medians over ``--repeats`` runs (seeds 0, 1, ...)
 
 ``--modes`` lists how ``isf.plan`` runs the samples, one row each (default ``w2,1``: one at a
 time on two worker threads, ``workers=2``, the process then allowed two CPUs; and 1, the paper's
-sequential loop, ``isf.plan``'s default); the last mode is the reference of the speed-up column; ``--objects N`` runs the first N objects only; ``--quick``: one object, 15
-samples, one run. ``--fit KEY=VALUE,...`` plans both hands with
+sequential loop, ``isf.plan``'s default); the last mode is the reference of the speed-up
+column; ``--objects N`` runs the first N objects only; ``--quick``: one object, 15 samples, one
+run. ``--fit KEY=VALUE,...`` plans both hands with
 ``isf.FitConfig(KEY=VALUE, ...)`` instead of the paper's parameters (e.g.
 ``finger_damping=1e-6``, a diagnostic for finger QPs that fail to converge on a 16-joint hand,
 or ``tolerance=0.024``). ``--repair KEY=VALUE,...`` plans with
-``isf.RepairConfig(KEY=VALUE, ...)`` instead of the default repair (e.g. ``max_rows=12,activation=0.008``, the old default that
-docs/hands.md measures).
+``isf.RepairConfig(KEY=VALUE, ...)`` instead of the default repair (e.g.
+``max_rows=12,activation=0.008``, the setting docs/hands.md compares with the default).
 
 Run from the repository root:
     python bench/bench_hands.py [--quick] [--repeats 3] [--budget 20] [--hands allegro-right]
@@ -36,17 +37,17 @@ Run from the repository root:
 
 from __future__ import annotations
 
-import _common  # noqa: I001  (first: pins BLAS/OpenMP threads before numpy is imported)
+import _common
 
-import re  # noqa: E402
-import tempfile  # noqa: E402
-import time  # noqa: E402
-from pathlib import Path  # noqa: E402
+import re
+import tempfile
+import time
+from pathlib import Path
 
-import numpy as np  # noqa: E402
+import numpy as np
 
-import isf  # noqa: E402
-from isf import assets  # noqa: E402
+import isf
+from isf import assets
 
 SAMPLES = 60
 QUICK_SAMPLES = 15

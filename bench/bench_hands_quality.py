@@ -15,8 +15,7 @@ Hands:
 * ``three-finger``: the bundled hand.
 * ``allegro``: the vendor Allegro hand tagged as docs/tutorial-register.md does
   (``suggest_contacts(points=64)`` + ``tag_urdf``): a 0.5 rad cap per fingertip facing the
-  side the finger curls towards (see ``suggest_contacts``; before that rule the caps faced the
-  centroid of the fingertips, sideways out of the finger on this hand).
+  side the finger curls towards (see ``suggest_contacts``).
 * ``allegro-palmar``: the same copy with each cap set by hand to the palmar side of the tip
   (``normal = (cos 0.35, 0, sin 0.35)`` in the tip frame: +x is palmar, +z distal), for
   comparison with the suggestion.
@@ -28,19 +27,19 @@ Run from the repository root (a machine shared with other jobs: times are indica
 
 from __future__ import annotations
 
-import _common  # noqa: I001  (first: pins BLAS/OpenMP threads before numpy is imported)
+import _common
 
-import dataclasses  # noqa: E402
-import statistics  # noqa: E402
-import tempfile  # noqa: E402
-import time  # noqa: E402
-from pathlib import Path  # noqa: E402
+import dataclasses
+import statistics
+import tempfile
+import time
+from pathlib import Path
 
-import numpy as np  # noqa: E402
+import numpy as np
 
-import isf  # noqa: E402
-from isf.assets import vendor_gripper  # noqa: E402
-from isf.registration.tagging import suggest_approach, suggest_contacts, tag_urdf  # noqa: E402
+import isf
+from isf.assets import vendor_gripper
+from isf.registration import suggest_approach, suggest_contacts, tag_urdf
 
 SAMPLES = 60
 SEED = 0

@@ -37,14 +37,14 @@ Run from the repository root:  python bench/bench_iteration.py [--quick] [--repe
 
 from __future__ import annotations
 
-import _common  # noqa: I001  (first: pins BLAS/OpenMP threads before numpy is imported)
+import _common
 
-import time  # noqa: E402
+import time
 
-import numpy as np  # noqa: E402
+import numpy as np
 
-import isf  # noqa: E402
-from isf.fitting.correspondence import match  # noqa: E402
+import isf
+from isf.fitting.correspondence import match
 
 GRIPPER = "paper-parallel"
 MAX_POINTS = 2000
@@ -132,9 +132,10 @@ def floors(gripper, obj, fitted, levels, config, calls: int) -> dict:
     for level in np.flatnonzero(share):
         mask = gripper.level_mask(int(level))
         parts = [c[mask] for c in clouds]
-        one = _common.time_calls(lambda nxt=cycle(parts): obj.nearest(nxt()), calls)
+        queries = cycle(parts)
+        one = _common.time_calls(lambda: obj.nearest(next(queries)), calls)  # noqa: B023 (timed here)
         all_fits = np.concatenate(parts)
-        many = _common.time_calls(lambda: obj.nearest(all_fits), max(calls // 8, 5))
+        many = _common.time_calls(lambda: obj.nearest(all_fits), max(calls // 8, 5))  # noqa: B023 (timed here)
         single += share[level] * np.array(one)
         stacked += share[level] * np.array(many) / len(parts)
     points = float(sum(share[level] * gripper.level_mask(int(level)).sum()

@@ -13,7 +13,7 @@ repair the same fits:
   repair parameters (the fits it collects depend on them, since the sampler learns from every
   outcome);
 * ``CORPUS.pkl`` alone: builds one ``ClearanceRepair`` per configuration (after
-  ``isf.compiled.warming.warm_up()``) and repairs every stored fit; reports the CPU time per repair
+  ``isf.warming.warm_up()``) and repairs every stored fit; reports the CPU time per repair
   (process time; median over ``--repeats`` passes), the set-up time (the first build in the
   run, whose caches are warm where an earlier configuration has the same gripper or mesh, then
   a build again), and how many repairs differ from the stored answers (pose, joints, depths
@@ -26,21 +26,21 @@ The corpus is data: keep it out of the repository.
 
 from __future__ import annotations
 
-import _common  # noqa: I001  (first: pins BLAS/OpenMP threads before numpy is imported)
+import _common
 
-import pickle  # noqa: E402
-import statistics  # noqa: E402
-import tempfile  # noqa: E402
-import time  # noqa: E402
-from pathlib import Path  # noqa: E402
+import pickle
+import statistics
+import tempfile
+import time
+from pathlib import Path
 
-import numpy as np  # noqa: E402
+import numpy as np
 
-import isf  # noqa: E402
+import isf
 from isf import assets
-from isf.repair import clearance  # noqa: E402
-from isf.compiled.warming import warm_up  # noqa: E402
-from isf.planning._working_surface import resolve_spacing, working_surface  # noqa: E402
+from isf.repair import clearance
+from isf.warming import warm_up
+from isf.planning._working_surface import resolve_spacing, working_surface
 
 SAMPLES, MAX_POINTS = 60, 2000
 
@@ -106,7 +106,7 @@ def collect(path: str, corpus_name: str = "first",
 
         def recording(self, T, q, **kwargs):
             out = original(self, T, q, **kwargs)
-            cases.append((np.array(T), np.array(q), kwargs, tuple(out)))
+            cases.append((np.array(T), np.array(q), kwargs, tuple(out)))  # noqa: B023 (this case's list)
             return out
 
         clearance.ClearanceRepair.repair = recording

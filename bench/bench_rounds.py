@@ -1,42 +1,42 @@
 """Where the time of an ISF round goes, in the lockstep engine.
 
-A round (``isf.fitting.engine_kernel.run``) is one ISF iteration of every running fit in three steps:
-*match* (each contact point's nearest object point, searched from its last answer by a walk on
-the object's Delaunay graph, ``isf.search._neighbour_graph``; the outlier, normal and duplicate
-filters; the pairs' moments), *IPFO* (palm and finger steps on the moments) and *finish* (new
-contact points, the stop rule). This script runs the engine's rounds itself, step by step, on
-the fits of ``bench_iteration.py`` (32 uniform-sampler starts, seed 0, on the paper gripper and
-the ~2000-point bunny) and reports per fit-iteration: the time of each step, per pyramid level
-how often a contact point's last answer is still its nearest point, and what the walks save,
-measured in the same run as the extra time of the same rounds with every last answer
-forgotten before each round (every query then searches the k-d tree from its root; the
+A round (``isf.fitting.engine_kernel.run``) is one ISF iteration of every running fit in three
+steps: *match* (each contact point's nearest object point, searched from its last answer by a
+walk on the object's Delaunay graph, ``isf.search._neighbour_graph``; the outlier, normal and
+duplicate filters; the pairs' moments), *IPFO* (palm and finger steps on the moments) and
+*finish* (new contact points, the stop rule). This script runs the engine's rounds itself, step
+by step, on the fits of ``bench_iteration.py`` (32 uniform-sampler starts, seed 0, on the paper
+gripper and the ~2000-point bunny) and reports per fit-iteration: the time of each step, per
+pyramid level how often a contact point's last answer is still its nearest point, and what the
+walks save, measured in the same run as the extra time of the same rounds with every last
+answer forgotten before each round (every query then searches the k-d tree from its root; the
 answers, hence the rounds, are the same either way). Last, the match's searches alone: every
 query of the rounds (its contact point and the object point its walk starts from) answered in
-one compiled loop by ``isf.search.nearest.nearest_point``, a leaf kernel (``isf.compiled.leaf``: compiled
-without numba's reference counting, inlined by LLVM), and by the same function compiled as an
-ordinary kernel inlined by numba (as isf compiled it before the eighteenth session), with the
-ratio measured in the same run and a check that both give the same answers.
+one compiled loop by ``isf.search.nearest.nearest_point``, a leaf kernel
+(``isf.compiled.leaf``: compiled without numba's reference counting, inlined by LLVM), and by
+the same function compiled as an ordinary kernel inlined by numba, with the ratio measured in
+the same run and a check that both give the same answers.
 
 Run from the repository root:  python bench/bench_rounds.py [--quick] [--repeats 5]
 """
 
 from __future__ import annotations
 
-import _common  # noqa: I001  (first: pins BLAS/OpenMP threads before numpy is imported)
+import _common
 
-import statistics  # noqa: E402
-import time  # noqa: E402
+import statistics
+import time
 
-import numpy as np  # noqa: E402
-from numba import njit  # noqa: E402
+import numpy as np
+from numba import njit
 
-import isf  # noqa: E402
-from bench_iteration import GRIPPER, MAX_POINTS, starts  # noqa: E402
-from isf.fitting import engine_kernel as kernel  # noqa: E402
-from isf.fitting._ipfo import answer_requests  # noqa: E402
-from isf.fitting._ipfo_kernel import DONE, resume  # noqa: E402
-from isf.fitting.engine import LockstepFitter  # noqa: E402
-from isf.search.nearest import nearest_point, search_scratch  # noqa: E402
+import isf
+from bench_iteration import GRIPPER, MAX_POINTS, starts
+from isf.fitting import engine_kernel as kernel
+from isf.fitting._ipfo import answer_requests
+from isf.fitting._ipfo_kernel import DONE, alternate, no_answer
+from isf.fitting.engine import LockstepFitter
+from isf.search.nearest import nearest_point, search_scratch
 
 FITS = 32
 
@@ -49,17 +49,17 @@ counted_nearest_point = njit(nogil=True, error_model="numpy", inline="always")(
 def _unchanged(slots, grip, obj, hits, queries):
     """Add, per pyramid level, the running fits' contact points whose last answer is still their
     nearest object point (``hits``) and all of them (``queries``), at the state before a round."""
-    status, level_of, current, last = slots[6], slots[7], slots[11], slots[14]
+    status, level_of, current, last = slots.status, slots.level, slots.current, slots.last
     scratch = search_scratch()
     for b in range(len(status)):
         if status[b] != kernel.RUNNING:
             continue
         level = level_of[b]
-        rows, count = grip[4][level], grip[5][level]
+        rows, count = grip.level_rows[level], grip.level_count[level]
         for i in range(count):
             g = rows[i]
-            found = nearest_point(current[b, i, 0], current[b, i, 1], current[b, i, 2], -1, obj[0],
-                                  obj[2], scratch, np.inf)[0]
+            found, _ = nearest_point(current[b, i, 0], current[b, i, 1], current[b, i, 2], -1,
+                                     obj.points, obj.tree, scratch, np.inf)
             hits[level] += found == last[b, g]
             queries[level] += 1
 
@@ -69,11 +69,11 @@ def _record_queries(slots, grip, queries, starts, n):
     """Append the running fits' contact points at the state before a round (``queries``) with
     the object point each one's search starts from (``starts``: its last answer, -1 for none)
     from row ``n``; returns the new count."""
-    status, level_of, current, last = slots[6], slots[7], slots[11], slots[14]
+    status, level_of, current, last = slots.status, slots.level, slots.current, slots.last
     for b in range(len(status)):
         if status[b] != kernel.RUNNING:
             continue
-        rows, count = grip[4][level_of[b]], grip[5][level_of[b]]
+        rows, count = grip.level_rows[level_of[b]], grip.level_count[level_of[b]]
         for i in range(count):
             if n == len(starts):
                 return n
@@ -88,8 +88,8 @@ def _leaf_searches(queries, starts, points, tree):
     """``nearest_point`` of each query from its start, in one loop: the answers."""
     scratch, found = search_scratch(), np.empty(len(starts), np.int64)
     for q in range(len(starts)):
-        found[q] = nearest_point(queries[q, 0], queries[q, 1], queries[q, 2], starts[q], points,
-                                 tree, scratch, np.inf)[0]
+        found[q], _ = nearest_point(queries[q, 0], queries[q, 1], queries[q, 2], starts[q],
+                                    points, tree, scratch, np.inf)
     return found
 
 
@@ -98,8 +98,8 @@ def _counted_searches(queries, starts, points, tree):
     """:func:`_leaf_searches` with ``counted_nearest_point``."""
     scratch, found = search_scratch(), np.empty(len(starts), np.int64)
     for q in range(len(starts)):
-        found[q] = counted_nearest_point(queries[q, 0], queries[q, 1], queries[q, 2], starts[q],
-                                         points, tree, scratch, np.inf)[0]
+        found[q], _ = counted_nearest_point(queries[q, 0], queries[q, 1], queries[q, 2],
+                                            starts[q], points, tree, scratch, np.inf)
     return found
 
 
@@ -139,34 +139,33 @@ def run_rounds(gripper, obj, proposals, forget: bool, count_hits: bool) -> dict:
         fitter.add(i, p.T_object_gripper, p.q)
     slots, history, grip = fitter._slots, fitter._history, fitter._grip
     fit_params, ipfo_params = fitter._fit_params, fitter._ipfo_params
-    work = kernel._work(len(grip[2]), len(obj.points))
-    n_links = slots[2].shape[1]
+    work = kernel._work(len(grip.point_link), len(obj.points))
     levels = fitter.config.levels
     hits, queries = np.zeros(levels, np.int64), np.zeros(levels, np.int64)
     seconds = np.zeros(3)
     fit_iterations = 0
-    while np.any(slots[6] == kernel.RUNNING):
+    while np.any(slots.status == kernel.RUNNING):
         if count_hits:
             _unchanged(slots, grip, fitter._obj, hits, queries)
         if forget:
-            slots[14][:] = -1
+            slots.last[:] = -1
         t0 = time.perf_counter()
         pairs, state, moments = kernel._prepare(slots, grip, fitter._obj, fit_params, ipfo_params,
-                                                work, n_links)
+                                                work)
         t1 = time.perf_counter()
-        if len(pairs[0]):
-            reply = resume(state, moments, ipfo_params, 0, False, np.zeros(state[1].shape), False,
-                           state[2], state[3], state[4], state[5])
-            if reply[0] != DONE:
-                qps = [fitter._qp(b) for b in pairs[0].tolist()] if gripper.n_joints else None
-                answer_requests(gripper, qps, state, moments, ipfo_params, reply)
+        if len(pairs.fits):
+            request = alternate(state, moments, ipfo_params, 0, no_answer(state))
+            if request.status != DONE:
+                qps = [fitter._qp(b) for b in pairs.fits.tolist()] if gripper.n_joints else None
+                answer_requests(gripper, qps, state, moments, ipfo_params, request)
         t2 = time.perf_counter()
-        if len(pairs[0]):
+        if len(pairs.fits):
             kernel.finish_round(slots, history, grip, fit_params, pairs, state)
         t3 = time.perf_counter()
         seconds += (t1 - t0, t2 - t1, t3 - t2)
-        fit_iterations += len(pairs[0])
-        slots[6][slots[6] > kernel.RUNNING] = kernel.EMPTY  # ended fits leave, as in the engine
+        fit_iterations += len(pairs.fits)
+        ended = slots.status > kernel.RUNNING
+        slots.status[ended] = kernel.EMPTY  # ended fits leave, as in the engine
     return {"seconds": seconds, "fit_iterations": fit_iterations, "hits": hits, "queries": queries}
 
 

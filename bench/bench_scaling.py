@@ -25,13 +25,13 @@ Run from the repository root:
 
 from __future__ import annotations
 
-import _common  # noqa: I001  (first: pins BLAS/OpenMP threads before numpy is imported)
+import _common
 
-import time  # noqa: E402
+import time
 
 
-import isf  # noqa: E402
-from isf import assets  # noqa: E402
+import isf
+from isf import assets
 
 GRIPPER = "paper-parallel"
 OBJECT = "bunny"

@@ -27,7 +27,7 @@ import numpy as np
 from bench_repair import stored_configurations
 
 import isf
-from isf.compiled.warming import warm_up
+from isf.warming import warm_up
 from isf.planning._evaluation import SampleJudge
 
 DEPTH_BINS_MM = (0.0, 1.0, 3.0, 6.0, 10.0, 15.0, 20.0, 30.0, np.inf)

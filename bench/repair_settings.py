@@ -48,7 +48,7 @@ from table1 import DEFAULT_OBJECTS
 import isf
 from isf.repair import clearance
 from isf.collision.checker import Plane
-from isf.compiled.warming import warm_up
+from isf.warming import warm_up
 from isf.planning._evaluation import SampleJudge
 from isf.fitting.engine import score_fit
 from isf.result import FitStatus

@@ -11,8 +11,9 @@ Every object runs once per mode of ``--modes`` (default ``8,w2,1``: 8 samples in
 thread; one sample at a time on two worker threads, ``isf.plan(..., workers=2)``, the process
 then allowed two CPUs; and 1, the paper's strictly sequential loop and ``isf.plan``'s default,
 which serves as the reference for "results not worse"), seeds 0, 1, ... (the same seeds for
-every mode). Reported per object and mode: ``t_total`` (``PlanStats.total_time``), the process CPU time, the time per collision-free
-grasp, the collision-free count and the mean fitting error of the collision-free grasps
+every mode). Reported per object and mode: ``t_total`` (``PlanStats.total_time``), the process
+CPU time, the time per collision-free grasp, the collision-free count and the mean fitting
+error of the collision-free grasps
 (``FitResult.mean_distance``); medians over ``--repeats`` runs cut by ``--budget`` seconds per
 configuration (at least one run), beside the paper's figures.
 
@@ -22,14 +23,14 @@ Run from the repository root:
 
 from __future__ import annotations
 
-import _common  # noqa: I001  (first: pins BLAS/OpenMP threads before numpy is imported)
+import _common
 
-import time  # noqa: E402
+import time
 
-import numpy as np  # noqa: E402
+import numpy as np
 
-import isf  # noqa: E402
-from isf.samplers import RegretSampler  # noqa: E402
+import isf
+from isf.samplers import RegretSampler
 
 GRIPPER = "paper-parallel"
 PAPER = {  # Table I of the paper: collision-free of 60, t_total (s), vertices

@@ -65,7 +65,10 @@ _THIRD_PARTY_MODULES = (
     "pathlib", "collections.abc", "enum", "abc",
 )
 nitpick_ignore_regex = [
-    (r"py:.*", r"(%s)\..+" % "|".join(m.replace(".", r"\.") for m in _THIRD_PARTY_MODULES)),
+    (r"py:.*", r"({})\..+".format("|".join(m.replace(".", r"\.") for m in _THIRD_PARTY_MODULES))),
+]
+nitpick_ignore = [
+    ("py:class", "Path"),  # pathlib.Path as string annotations name it (intersphinx is off)
 ]
 
 # -- MyST --------------------------------------------------------------------------------------

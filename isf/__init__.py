@@ -15,30 +15,43 @@ from .compiled.cache import refresh_installed as _refresh_kernel_cache
 
 _refresh_kernel_cache()  # before any kernel loads: drop cached kernels whose sources changed
 
-from .repair.clearance import RepairConfig
 from .collision.checker import CollisionChecker, CollisionReport, Plane
 from .config import FitConfig
 from .exceptions import (
+    AssetFetchError,
     ConfigError,
+    GeometryLoadError,
     GripperDescriptionError,
     InvalidInputError,
     ISFError,
+    ISFWarning,
+    JointLimitError,
+    JointLimitViolation,
+    MeshNotFoundError,
+    ModelBuildError,
     ObjectLoadError,
     PluginLoadError,
     QPStepError,
+    RegistrationError,
     SamplerNotFound,
+    SurfaceSelectionError,
+    UnknownAssetError,
+    URDFReadError,
+    YCBNotFoundError,
 )
 from .fitting.fit import fit, fit_many
-from .gripper.model import ContactSurface, Gripper
 from .gripper.loading import inspect_gripper, load_gripper
+from .gripper.model import ContactSurface, Gripper
 from .object.loading import load_object
 from .object.specs import open_object
 from .object.surface import ObjectSurface
 from .planning.planner import Grasp, PlanResult, PlanStats, plan
+from .repair.clearance import RepairConfig
 from .result import FitResult, FitStatus, IterationRecord
 from .samplers import Outcome, Proposal, Sampler, available_samplers, get_sampler, register_sampler
 
 __all__ = [
+    "AssetFetchError",
     "CollisionChecker",
     "CollisionReport",
     "ConfigError",
@@ -46,12 +59,18 @@ __all__ = [
     "FitConfig",
     "FitResult",
     "FitStatus",
+    "GeometryLoadError",
     "Grasp",
     "Gripper",
     "GripperDescriptionError",
     "ISFError",
+    "ISFWarning",
     "InvalidInputError",
     "IterationRecord",
+    "JointLimitError",
+    "JointLimitViolation",
+    "MeshNotFoundError",
+    "ModelBuildError",
     "ObjectLoadError",
     "ObjectSurface",
     "Outcome",
@@ -61,9 +80,14 @@ __all__ = [
     "PluginLoadError",
     "Proposal",
     "QPStepError",
+    "RegistrationError",
     "RepairConfig",
     "Sampler",
     "SamplerNotFound",
+    "SurfaceSelectionError",
+    "URDFReadError",
+    "UnknownAssetError",
+    "YCBNotFoundError",
     "__version__",
     "available_samplers",
     "fit",

@@ -6,8 +6,7 @@ the needed members into ``<cache>/<package>-<version>/`` (the wheel's own folder
 vendor URDFs find their meshes where the vendor put them) and deletes the wheel. Later calls
 only read the cache. The wheels total 490 MB but the members taken only 44 MB, and a wheel is
 needed again only if isf changes its member selection, so wheels are not kept (pip runs with
-``--no-cache-dir`` so that no hidden copy lands in pip's cache either). First fetch of all five
-packages: 17-28 s from a local index mirror.
+``--no-cache-dir`` so that no hidden copy lands in pip's cache either).
 
 Cache root: ``$ISF_CACHE_DIR`` if set, else ``~/.cache/isf``. A package's folder appears in one
 ``rename`` after its extraction finished, so an interrupted fetch never leaves a half-filled
@@ -46,7 +45,7 @@ import zipfile
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
-from .exceptions import ConfigError, ISFError
+from .exceptions import AssetFetchError, ConfigError, UnknownAssetError, YCBNotFoundError
 
 __all__ = [
     "AssetFetchError",
@@ -65,18 +64,6 @@ log = logging.getLogger(__name__)
 
 _MARKER = ".isf-fetch.json"
 _PIP_TIMEOUT_S = 1800.0
-
-
-class AssetFetchError(ISFError):
-    """A pinned wheel could not be downloaded or did not hold the expected files."""
-
-
-class YCBNotFoundError(AssetFetchError):
-    """The local YCB folder is absent (YCB meshes are never downloaded)."""
-
-
-class UnknownAssetError(ISFError, LookupError):
-    """The requested gripper, object or object group name does not exist."""
 
 
 # --------------------------------------------------------------------------- sources
@@ -232,13 +219,15 @@ def _download_wheel(source: _Source, dest: Path) -> Path:
         proc = subprocess.run(cmd, capture_output=True, text=True, timeout=_PIP_TIMEOUT_S)
     except (OSError, subprocess.TimeoutExpired) as exc:
         raise AssetFetchError(
-            f"could not run pip to download {source.requirement}: {exc}; {fix}"
+            f"could not run pip to download {source.requirement}: {exc}; {fix}",
+            package=source.requirement,
         ) from exc
     wheels = sorted(dest.glob("*.whl"))
     if proc.returncode != 0 or len(wheels) != 1:
         raise AssetFetchError(
             f"pip could not download {source.requirement} (exit code {proc.returncode}): "
-            f"{_stderr_tail(proc.stderr)}; {fix}"
+            f"{_stderr_tail(proc.stderr)}; {fix}",
+            package=source.requirement,
         )
     return wheels[0]
 
@@ -292,7 +281,8 @@ def _select_members(zf: zipfile.ZipFile, source: _Source) -> list[str]:
     if not chosen:
         raise AssetFetchError(
             f"the {source.requirement} wheel holds none of the expected files; "
-            f"the pinned wheel changed: report this as an isf bug"
+            f"the pinned wheel changed: report this as an isf bug",
+            package=source.requirement,
         )
     todo = sorted(chosen)
     while todo:
@@ -326,7 +316,9 @@ def _extract(wheel: Path, source: _Source, tree: Path) -> list[str]:
         zf = zipfile.ZipFile(wheel)
     except zipfile.BadZipFile as exc:
         raise AssetFetchError(
-            f"{wheel.name} is not a valid wheel ({exc}); delete it and retry"
+            f"{wheel.name} is not a valid wheel ({exc}); delete it and retry",
+            package=source.requirement,
+            path=wheel,
         ) from exc
     with zf:
         members = _select_members(zf, source)
@@ -334,7 +326,9 @@ def _extract(wheel: Path, source: _Source, tree: Path) -> list[str]:
             parts = name.split("/")
             if name.startswith("/") or ".." in parts:
                 raise AssetFetchError(
-                    f"{wheel.name} holds an unsafe member path {name!r}; not extracting"
+                    f"{wheel.name} holds an unsafe member path {name!r}; not extracting",
+                    package=source.requirement,
+                    path=wheel,
                 )
             out = tree.joinpath(*parts)
             out.parent.mkdir(parents=True, exist_ok=True)
@@ -418,7 +412,9 @@ def prefetch(packages: list[str] | None = None) -> dict[str, Path]:
     unknown = [p for p in names if p not in _SOURCES]
     if unknown:
         raise UnknownAssetError(
-            f"no pinned asset package named {unknown}; use one of {sorted(_SOURCES)}"
+            f"no pinned asset package named {unknown}; use one of {sorted(_SOURCES)}",
+            name=unknown,
+            known=sorted(_SOURCES),
         )
     return {p: _package_dir(_SOURCES[p]) for p in names}
 
@@ -454,8 +450,9 @@ def vendor_gripper(name: str) -> Path:
     """
     entry = _GRIPPERS.get(name) or _ARMS.get(name)
     if entry is None:
+        known = vendor_grippers(include_arms=True)
         raise UnknownAssetError(
-            f"unknown vendor gripper {name!r}; use one of {vendor_grippers(include_arms=True)}"
+            f"unknown vendor gripper {name!r}; use one of {known}", name=name, known=known
         )
     source, member = entry
     return _member_path(source, member)
@@ -465,7 +462,11 @@ def _member_path(source: _Source, member: str) -> Path:
     folder = _package_dir(source)
     path = folder.joinpath(*member.split("/"))
     if not path.is_file():
-        raise AssetFetchError(f"{path} is missing from the cache; delete {folder} to refetch it")
+        raise AssetFetchError(
+            f"{path} is missing from the cache; delete {folder} to refetch it",
+            package=source.requirement,
+            path=path,
+        )
     return path
 
 
@@ -540,7 +541,11 @@ def benchmark_objects(group: str = "all") -> list[str]:
     if group == "all":
         return [n for g in ("stanford", "pybullet", "robosuite", "random") for n in fixed[g]]
     if group not in fixed:
-        raise UnknownAssetError(f"unknown object group {group!r}; use one of {list(_GROUPS)}")
+        raise UnknownAssetError(
+            f"unknown object group {group!r}; use one of {list(_GROUPS)}",
+            name=group,
+            known=_GROUPS,
+        )
     return fixed[group]
 
 
@@ -570,7 +575,9 @@ def benchmark_object(name: str) -> BenchmarkObject:
     if urdf is None:
         raise UnknownAssetError(
             f"unknown benchmark object {name!r}; use one of the names from "
-            f"benchmark_objects(group) for group in {list(_GROUPS)}, or 'ycb:<name>'"
+            f"benchmark_objects(group) for group in {list(_GROUPS)}, or 'ycb:<name>'",
+            name=name,
+            known=benchmark_objects("all"),
         )
     urdf_path = _member_path(_PYBULLET, urdf)
     mesh, scale = _urdf_visual_mesh(urdf_path)
@@ -593,19 +600,22 @@ def _urdf_visual_mesh(urdf: Path) -> tuple[Path, float]:
     mesh = ET.parse(urdf).getroot().find("./link/visual/geometry/mesh")
     if mesh is None:
         raise AssetFetchError(
-            f"{urdf} has no visual mesh; the pinned wheel changed: report this as an isf bug"
+            f"{urdf} has no visual mesh; the pinned wheel changed: report this as an isf bug",
+            path=urdf,
         )
     factors = {float(v) for v in mesh.get("scale", "1 1 1").split()}
     if len(factors) != 1:
         raise AssetFetchError(
             f"{urdf} scales its mesh non-uniformly ({mesh.get('scale')}); "
-            f"isf expects a uniform scale: report this as an isf bug"
+            f"isf expects a uniform scale: report this as an isf bug",
+            path=urdf,
         )
     path = urdf.parent / mesh.get("filename", "")
     if not path.is_file():
         raise AssetFetchError(
             f"{urdf} references {path.name}, which is not in the cache; "
-            f"delete {urdf.parent} and retry"
+            f"delete {urdf.parent} and retry",
+            path=path,
         )
     return path, factors.pop()
 
@@ -625,16 +635,18 @@ def _ycb_dir() -> Path:
         path = Path(env).expanduser()
         if not path.is_dir():
             raise YCBNotFoundError(
-                f"ISF_YCB_DIR={env} is not a folder; point it at the folder of YCB .obj files"
+                f"ISF_YCB_DIR={env} is not a folder; point it at the folder of YCB .obj files",
+                searched=[path],
             )
         return path
-    for folder in (Path.cwd(), *Path.cwd().parents):
-        cand = folder / "shared" / "data" / "ycb"
+    searched = [f / "shared" / "data" / "ycb" for f in (Path.cwd(), *Path.cwd().parents)]
+    for cand in searched:
         if cand.is_dir():
             return cand
     raise YCBNotFoundError(
         f"no YCB folder: set ISF_YCB_DIR to a folder of YCB .obj files (none found as "
-        f"shared/data/ycb in {Path.cwd()} or its parents)"
+        f"shared/data/ycb in {Path.cwd()} or its parents)",
+        searched=searched,
     )
 
 
@@ -647,8 +659,9 @@ def _ycb_object(name: str) -> BenchmarkObject:
     wanted = norm(name[len("ycb:") :])
     hits = [p for p in sorted(folder.glob("*.obj")) if norm(p.stem) == wanted]
     if not hits:
+        known = benchmark_objects("ycb")
         raise UnknownAssetError(
-            f"no YCB object {name!r} in {folder}; use one of {benchmark_objects('ycb')}"
+            f"no YCB object {name!r} in {folder}; use one of {known}", name=name, known=known
         )
     return BenchmarkObject(
         f"ycb:{hits[0].stem}", hits[0], 1.0, f"YCB folder {folder}", _YCB_LICENCE

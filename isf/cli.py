@@ -133,13 +133,13 @@ def _one_line(err: Exception) -> str:
 
 # ----------------------------------------------------------------------------- commands
 def _cmd_plan(args: argparse.Namespace) -> int:
-    from .repair.clearance import RepairConfig
     from .collision.checker import Plane
     from .config import FitConfig, config_from_text
     from .gripper.loading import load_gripper
     from .object.specs import check_object_spec, open_object
     from .planning.plan_json import write_plan_json
     from .planning.planner import plan
+    from .repair.clearance import RepairConfig
     from .samplers import get_sampler
 
     outputs = _output_paths(args.object_specs, args.out, args.out_dir)
@@ -245,7 +245,7 @@ def _compile_kernels(quiet: bool) -> None:
     """Compile (or load) the kernels before planning, so the plan's times leave them out; when
     that takes more than a few seconds (a first run: loading compiled kernels takes about one),
     say what is happening."""
-    from .compiled.warming import warm_up
+    from .warming import warm_up
 
     notice = threading.Timer(_COMPILE_NOTICE_AFTER, lambda: print(
         "isf: compiling its numerical kernels for this machine (once after installing or "
@@ -294,7 +294,7 @@ def _pairs(words: list[str], what: str) -> dict[str, str]:
 
 def _cmd_tag(args: argparse.Namespace) -> int:
     from .exceptions import InvalidInputError
-    from .registration.tagging import ContactSpec, suggest_approach, suggest_contacts, tag_urdf
+    from .registration import ContactSpec, suggest_approach, suggest_contacts, tag_urdf
 
     package_dirs = _pairs(args.package, "--package") or None
     try:

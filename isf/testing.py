@@ -195,7 +195,7 @@ def _same(a: list[list[Proposal]], b: list[list[Proposal]]) -> bool:
 
 
 def _global_rng_state() -> tuple:
-    state = np.random.get_state()
+    state = np.random.get_state()  # noqa: NPY002  (numpy's global RNG is what this checks)
     return (state[0], state[1].copy(), *state[2:], random.getstate())
 
 

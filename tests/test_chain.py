@@ -14,8 +14,8 @@ from scipy.spatial.transform import Rotation
 
 import isf
 from isf import assets
-from isf.gripper.chain import KinematicChain
 from isf.exceptions import InvalidInputError
+from isf.gripper.chain import KinematicChain
 from isf.gripper.model import ContactSurface, Gripper
 
 BUNDLED = ("paper-parallel", "flat-parallel", "three-finger")

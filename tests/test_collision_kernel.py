@@ -7,12 +7,12 @@ import coal
 import numpy as np
 import pytest
 import trimesh
+from test_collision import CUBE, GAP, _coal_bvh, jaw_gripper, mesh_object, pose
 
-from isf.collision.checker import CollisionChecker
 from isf.collision._elements import Element, point_triangle_distance
+from isf.collision.checker import CollisionChecker
 from isf.collision.kernel import reverse_clearance
 from isf.gripper.model import LinkGeometry
-from test_collision import CUBE, GAP, _coal_bvh, jaw_gripper, mesh_object, pose
 
 
 def _coal_distance(model, point, pose=None) -> float:
@@ -44,7 +44,7 @@ def _brute_depths(checker: CollisionChecker, T: np.ndarray, q: np.ndarray) -> np
     each) and every object point inside it."""
     links = checker.gripper.frame_kinematics_many(np.asarray(q, float)[None], checker._frame_ids)
     out = []
-    for i, e in enumerate(checker._elements):
+    for e in checker._elements:
         M = np.eye(4)
         M[:3, :3], M[:3, 3] = links.rotations[0, e.frame], links.positions[0, e.frame]
         M = T @ M

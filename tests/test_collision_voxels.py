@@ -6,12 +6,12 @@ import coal
 import numpy as np
 import pytest
 import trimesh
+from test_collision import jaw_gripper, mesh_object, pose
 
-from isf.collision.checker import CollisionChecker
 from isf.collision._elements import Element
+from isf.collision.checker import CollisionChecker
 from isf.collision.voxels import SurfaceVoxels, _gaps
 from isf.gripper.model import LinkGeometry
-from test_collision import jaw_gripper, mesh_object, pose
 
 
 def _torus() -> trimesh.Trimesh:

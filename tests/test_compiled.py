@@ -8,7 +8,7 @@ _SCRIPT = """
 import json, sys
 from numba.core.dispatcher import Dispatcher
 import isf
-from isf.compiled.warming import warm_up
+from isf.warming import warm_up
 
 def signatures():
     found = {}
@@ -29,13 +29,16 @@ print(json.dumps({"before": before, "after": signatures()}))
 
 
 def test_warm_up_covers_every_kernel_call_of_a_plan():
-    out = subprocess.run([sys.executable, "-c", _SCRIPT], capture_output=True, text=True, check=True)
+    out = subprocess.run([sys.executable, "-c", _SCRIPT], capture_output=True, text=True,
+                         check=True)
     counts = json.loads(out.stdout.strip().splitlines()[-1])
     before, after = counts["before"], counts["after"]
     entry_points = {  # the kernels the engine calls from Python (they call the others)
-        "isf.fitting.engine_kernel.run", "isf.fitting.engine_kernel.enter_level", "isf.fitting.engine_kernel.score_state",
-        "isf.fitting.engine_kernel.finish_round", "isf.fitting._ipfo_kernel.resume", "isf.search.nearest.nearest_with_guesses",
-        "isf.search.nearest._query_k", "isf.fitting.correspondence.filter_pairs", "isf.gripper.chain.compiled_frame_kinematics",
+        "isf.fitting.engine_kernel.run",
+        "isf.fitting.engine_kernel.enter_level", "isf.fitting.engine_kernel.score_state",
+        "isf.fitting.engine_kernel.finish_round", "isf.fitting._ipfo_kernel.alternate",
+        "isf.search.nearest.nearest_with_guesses", "isf.search.nearest._query_k",
+        "isf.fitting.correspondence.filter_pairs", "isf.gripper.chain.compiled_frame_kinematics",
         "isf.repair.dense_qp._dual_active_set", "isf.collision.kernel.check_elements",
         "isf.collision.kernel.reverse_clearance", "isf.collision.checker._rigid",
         "isf.repair._step.to_object", "isf.repair._step.motion_rows", "isf.repair._step.step_qp",

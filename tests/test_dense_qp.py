@@ -5,8 +5,8 @@ import osqp
 import pytest
 import scipy.sparse as sp
 
-from isf.repair.dense_qp import solve_dense_qp
 from isf.exceptions import InvalidInputError
+from isf.repair.dense_qp import solve_dense_qp
 
 
 def _kkt_errors(H, c, A, l, u, x, y):
@@ -132,3 +132,26 @@ def test_non_convex_and_bad_input():
         solve_dense_qp(np.eye(2), np.zeros(2), np.eye(2), np.zeros(3), np.ones(2))
     with pytest.raises(InvalidInputError, match="non-finite"):
         solve_dense_qp(np.eye(2), np.r_[np.nan, 0.0])
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_the_repairs_qp_solvers_agree(monkeypatch, seed):
+    """The repair's exact QP solvers (``isf.repair.clearance.QP_SOLVER``: dense_qp and daqp, a
+    second implementation of the method) give the same answer, up to rounding, and meet every
+    row; an infeasible QP is reported (None) by both."""
+    pytest.importorskip("daqp")
+    from isf.repair import clearance
+
+    H, c, A, l, u = _random_problem(np.random.default_rng(seed))
+    answers = {}
+    for solver in ("dense_qp", "daqp"):
+        monkeypatch.setattr(clearance, "QP_SOLVER", solver)
+        answers[solver] = x = clearance._solve_exact(H, c, A, l, u)
+        Ax = A @ x
+        assert np.all(Ax >= l - 1e-9 * (1.0 + np.abs(l)))
+        assert np.all(Ax <= u + 1e-9 * (1.0 + np.abs(u)))
+        infeasible = np.array([[1.0, 0.0], [1.0, 0.0]]), np.array([1.0, -np.inf]), \
+            np.array([np.inf, 0.0])  # x1 >= 1 and x1 <= 0
+        assert clearance._solve_exact(np.eye(2), np.zeros(2), *infeasible) is None
+    scale = 1.0 + np.abs(answers["dense_qp"]).max()
+    assert np.abs(answers["daqp"] - answers["dense_qp"]).max() <= 1e-8 * scale

@@ -1,8 +1,9 @@
 """The documentation site builds in strict mode, and the strict build really fails on a broken link.
 
 Both builds run ``python -m sphinx -W --keep-going`` (any warning is an error) in a subprocess;
-they are started together so that they overlap in time (about 12 s of CPU each). The toolchain
-(sphinx, myst-parser, furo) comes with the ``test`` extra.
+they are started together so that they overlap in time. The toolchain (sphinx, myst-parser,
+furo) comes with the ``test`` extra. The pages also describe the present: none narrates the
+order of work in numbered sessions.
 """
 
 from __future__ import annotations
@@ -25,10 +26,16 @@ if sys.version_info < (3, 11):
                 allow_module_level=True)
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"
-BUILD_TIMEOUT = 300  # s; a normal build takes 10-25 s
+BUILD_TIMEOUT = 300  # s; far above a normal build
 
 BROKEN_LINK = "missing-page.md"
 BROKEN_FUNC = "isf.no_such_function"
+
+_ORDINALS = ("first|second|third|fourth|fifth|sixth|seventh|eighth|ninth|tenth|eleventh|twelfth|"
+             "thirteenth|fourteenth|fifteenth|sixteenth|seventeenth|eighteenth|nineteenth|"
+             "twentieth|\\d+(?:st|nd|rd|th)")
+NARRATION = re.compile(rf"\b(?:{_ORDINALS})\s+session\b", re.IGNORECASE)
+"""A numbered work session ("the ninth session"): history, which lives in git."""
 
 
 def _start(src: Path, out: Path) -> subprocess.Popen:
@@ -104,3 +111,14 @@ def test_strict_build_fails_on_broken_references(builds):
     assert any(BROKEN_LINK in w for w in warnings), log
     assert any(BROKEN_FUNC in w for w in warnings), log
     assert len(warnings) == 2, "only the two injected errors should be reported:\n" + log
+
+
+
+def test_pages_describe_the_present():
+    assert NARRATION.search("as the Ninth session found") and NARRATION.search("12th session")
+    assert not NARRATION.search("a long-running session")
+    pages = [*sorted(DOCS.glob("*.md")), DOCS.parent / "README.md"]
+    hits = [f"{page.name}:{n}: {line.strip()}" for page in pages
+            for n, line in enumerate(page.read_text(encoding="utf-8").splitlines(), 1)
+            if NARRATION.search(line)]
+    assert not hits, "pages narrate numbered sessions:\n" + "\n".join(hits)

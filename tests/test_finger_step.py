@@ -2,12 +2,11 @@
 
 import numpy as np
 import pytest
+from _builders import parallel_gripper, random_rotation
 from scipy.optimize import lsq_linear
 
 import isf
-from _builders import parallel_gripper, random_rotation
-from isf.fitting._finger_step import FingerStepQP
-from isf.fitting._finger_step import finger_steps
+from isf.fitting._finger_step import FingerStepQP, finger_steps
 from isf.fitting.reference import PairBatch
 from isf.fitting.segments import Segments
 from isf.se3 import make_transform

@@ -2,19 +2,14 @@
 
 import numpy as np
 import pytest
+from _builders import random_rotation
 
 import isf
-from _builders import random_rotation
 from isf.config import config_from_text
 from isf.se3 import make_transform, rotation_angle
 
 GROOVE_RADIUS = 0.008  # docs/bundled-grippers.md: paper-parallel groove radius
 GROOVE_HEIGHT = 0.06  # groove axis height above the palm, metres
-
-
-@pytest.fixture(scope="module")
-def paper_gripper():
-    return isf.load_gripper("paper-parallel")
 
 
 @pytest.mark.parametrize("seed", range(5))
@@ -46,7 +41,7 @@ def mold(gripper, T_star, q_star, points_per_surface=3000):
     return obj
 
 
-def perturbed(rng, T, angle, distance, centre=np.zeros(3)):
+def perturbed(rng, T, angle, distance, centre=(0.0, 0.0, 0.0)):
     """``T`` turned by ``angle`` about a random axis through ``centre`` (object frame), then moved by ``distance``."""
     offset = rng.normal(size=3)
     R = random_rotation(rng, angle)

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from isf.gripper.bundled import bundled_grippers
 from isf.exceptions import GripperDescriptionError
+from isf.gripper.bundled import bundled_grippers
 from isf.gripper.loading import format_report, inspect_gripper, load_gripper
 from isf.gripper.mesh_paths import MeshNotFoundError, mesh_path_candidates, resolve_mesh_path
 from isf.gripper.urdf_tags import rpy_matrix

@@ -16,10 +16,10 @@ import trimesh
 
 import isf
 from isf.assets import AssetFetchError, YCBNotFoundError, benchmark_object, vendor_gripper
-from isf.repair.clearance import ClearanceRepair, RepairConfig, repair_penetration
 from isf.collision.checker import CollisionChecker, Plane
 from isf.gripper.model import ContactSurface, Gripper, LinkGeometry
-from isf.registration.tagging import suggest_approach, suggest_contacts, tag_urdf
+from isf.registration import suggest_approach, suggest_contacts, tag_urdf
+from isf.repair.clearance import ClearanceRepair, RepairConfig, repair_penetration
 
 YCB_NAME = "ycb:TomatoSoupCan"  # 67 mm across, 102 mm tall: a can a hand wraps its fingertips on
 ALLEGRO_TIPS = {"link_3.0_tip", "link_7.0_tip", "link_11.0_tip", "link_15.0_tip"}

@@ -2,9 +2,9 @@
 
 import numpy as np
 import pytest
-
-from _open3d import import_open3d
 from _builders import bumpy_object, bumpy_patch, parallel_gripper, random_rotation
+from _open3d import import_open3d
+
 from isf.config import FitConfig
 from isf.fitting.fit import fit
 from isf.se3 import make_transform, rotation_angle

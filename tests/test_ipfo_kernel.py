@@ -2,15 +2,15 @@
 
 import numpy as np
 import pytest
+from _builders import random_rotation
 
 import isf
 import isf.fitting._box_qp
-from _builders import random_rotation
 from isf.fitting._finger_step import FingerStepQP
 from isf.fitting._ipfo import ipfo
 from isf.fitting.reference import PairBatch
-from isf.se3 import make_transform
 from isf.fitting.segments import Segments
+from isf.se3 import make_transform
 
 
 @pytest.fixture(scope="module")

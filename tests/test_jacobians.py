@@ -34,9 +34,12 @@ FINGER = """
 # multiplier -1 and an offset, and a tip on the right jaw turns with it (revolute mimic).
 MIMIC_PARALLEL = """<robot name="mimic_parallel" xmlns:isf="urn:isf:gripper:1">
   <link name="palm"><collision><geometry><box size="0.1 0.02 0.02"/></geometry></collision></link>
-  <link name="left"><collision><origin xyz="0 0 0.02"/><geometry><box size="0.01 0.01 0.04"/></geometry></collision></link>
-  <link name="right"><collision><origin xyz="0 0 0.02"/><geometry><box size="0.01 0.01 0.04"/></geometry></collision></link>
-  <link name="right_tip"><collision><origin xyz="0 0 0.01"/><geometry><box size="0.01 0.01 0.02"/></geometry></collision></link>
+  <link name="left"><collision>
+    <origin xyz="0 0 0.02"/><geometry><box size="0.01 0.01 0.04"/></geometry></collision></link>
+  <link name="right"><collision>
+    <origin xyz="0 0 0.02"/><geometry><box size="0.01 0.01 0.04"/></geometry></collision></link>
+  <link name="right_tip"><collision>
+    <origin xyz="0 0 0.01"/><geometry><box size="0.01 0.01 0.02"/></geometry></collision></link>
   <joint name="jaw" type="prismatic"><parent link="palm"/><child link="left"/>
     <origin xyz="0 0 0.03"/><axis xyz="0 1 0"/><limit lower="0" upper="0.04" effort="1" velocity="1"/></joint>
   <joint name="jaw_mimic" type="prismatic"><parent link="palm"/><child link="right"/>

@@ -5,16 +5,16 @@ import numpy as np
 from numba import njit
 from numba.core.options import DefaultOptions
 
-from isf.fitting import _box_qp as box_qp
-from isf.fitting import moment_kernels
 from isf.compiled import leaf as leaf_module
 from isf.compiled.leaf import leaf
+from isf.fitting import _box_qp as box_qp
+from isf.fitting import moment_kernels
 from isf.search.nearest import NearestPoints, nearest_point, tree_nearest
 
 LEAVES = (nearest_point, tree_nearest, moment_kernels.solve_small, moment_kernels._group_pose,
           moment_kernels._residual, moment_kernels._add_palm_sandwich, moment_kernels._add_sandwich,
           box_qp._primal_dual, box_qp._primal)
-"""Kernels measured to need it (``docs/benchmarks.md``, eighteenth session)."""
+"""Kernels measured to need it (``docs/benchmarks.md``, section "bench_rounds")."""
 
 
 def _first_closer(x, points, limit):

@@ -2,15 +2,15 @@
 
 import numpy as np
 import pytest
+from _builders import random_rotation
 
 import isf
-from _builders import random_rotation
-from isf.fitting.reference import PairBatch
-from isf.fitting.moment_kernels import solve_small
 from isf.fitting._moments import PairMoments
 from isf.fitting._palm_step import palm_motions, palm_steps
-from isf.se3 import make_transform
+from isf.fitting.moment_kernels import solve_small
+from isf.fitting.reference import PairBatch
 from isf.fitting.segments import Segments
+from isf.se3 import make_transform
 
 
 @pytest.fixture(scope="module")

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from isf.search.nearest import NearestPoints, nearest_point, search_scratch
 from isf.search._neighbour_graph import neighbour_graph
+from isf.search.nearest import NearestPoints, nearest_point, search_scratch
 
 GRAPH = pytest.mark.parametrize("graph", [False, True], ids=["tree", "graph"])
 
@@ -196,7 +196,7 @@ def test_searches_from_the_last_answer_give_what_a_full_search_gives(case):
     rng = np.random.default_rng(len(case))
     points = _surface_cases(rng)[case]
     search = NearestPoints(points, graph=True)
-    assert bool(len(search.tree[8])) == (case != "flat")  # a flat set has no graph: the tree
+    assert bool(len(search.tree.graph.indptr)) == (case != "flat")  # a flat set has no graph: the tree
     scratch = search_scratch()
     n_walkers = 20
     last = np.full(n_walkers, -1, np.int64)
@@ -226,7 +226,8 @@ def test_the_graph_links_each_point_to_its_nearest_and_copies_to_their_first():
     """Two properties of any Delaunay graph, checked by brute force on the distinct points: each
     point's nearest other point is its neighbour, and the graph is symmetric; an exact copy of
     an earlier point lists that point and is no one's neighbour."""
-    points, (indptr, indices, _), d2 = _flat_cloud_with_copies(4)
+    points, graph, d2 = _flat_cloud_with_copies(4)
+    indptr, indices = graph.indptr, graph.indices
     distinct = points[:300]
     assert len(indptr) == len(points) + 1 and np.all(np.diff(indptr) > 0)
     neighbours = [set(indices[indptr[i]:indptr[i + 1]].tolist()) for i in range(len(points))]
@@ -241,7 +242,8 @@ def test_the_graph_links_each_point_to_its_nearest_and_copies_to_their_first():
 def test_the_graph_lists_neighbours_nearest_first_with_the_walks_cutoffs():
     """Each point's neighbours come nearest first, the first is its nearest other point (brute
     force), and each cutoff is a quarter of the squared distance to that neighbour, just below."""
-    points, (indptr, indices, cutoff), d2 = _flat_cloud_with_copies(6)
+    points, graph, d2 = _flat_cloud_with_copies(6)
+    indptr, indices, cutoff = graph.indptr, graph.indices, graph.cutoff
     for i in range(len(points)):
         listed = indices[indptr[i]:indptr[i + 1]]
         squared = ((points[listed] - points[i]) ** 2).sum(axis=1)
@@ -256,11 +258,11 @@ def test_the_graph_lists_neighbours_nearest_first_with_the_walks_cutoffs():
 
 def test_no_graph_for_too_few_or_flat_points():
     rng = np.random.default_rng(0)
-    assert len(neighbour_graph(np.eye(3))[0]) == 0
-    assert len(neighbour_graph(np.concatenate([np.eye(3)] * 4))[0]) == 0  # 3 distinct points
+    assert len(neighbour_graph(np.eye(3)).indptr) == 0
+    assert len(neighbour_graph(np.concatenate([np.eye(3)] * 4)).indptr) == 0  # 3 distinct points
     flat = np.c_[rng.normal(size=(50, 2)), np.zeros(50)] @ np.linalg.qr(rng.normal(size=(3, 3)))[0]
-    assert len(neighbour_graph(flat)[0]) == 0  # a tilted plane
-    assert len(neighbour_graph(flat + 1e-3 * rng.normal(size=flat.shape))[0]) == len(flat) + 1
+    assert len(neighbour_graph(flat).indptr) == 0  # a tilted plane
+    assert len(neighbour_graph(flat + 1e-3 * rng.normal(size=flat.shape)).indptr) == len(flat) + 1
 
 
 def test_plans_are_the_same_with_and_without_the_graph(monkeypatch):
@@ -278,7 +280,7 @@ def test_plans_are_the_same_with_and_without_the_graph(monkeypatch):
     def grasps(graph):
         obj = isf.load_object(cloud)
         result = isf.plan(gripper, obj, samples=8, seed=1)
-        assert bool(len(obj.search.tree[8])) == graph
+        assert bool(len(obj.search.tree.graph.indptr)) == graph
         return [(g.collision_free, g.fit.mean_distance, g.fit.T_object_gripper.tobytes(),
                  g.fit.q.tobytes()) for g in result.grasps]
 
@@ -298,7 +300,7 @@ def test_a_graph_added_later_changes_no_answer_and_leaves_the_old_arrays_valid()
     expected = search.query(queries, guess)
     assert search.add_graph() and search.has_graph
     assert search.add_graph()  # built once; later calls only report it
-    assert search.tree is not before and all(a is b for a, b in zip(search.tree[:8], before[:8]))
+    assert search.tree is not before and search.tree.kd is before.kd
     for answer in (search.query(queries, guess), NearestPoints(points, graph=True).query(queries, guess)):
         np.testing.assert_array_equal(answer[0], expected[0])
         np.testing.assert_array_equal(answer[1], expected[1])

@@ -26,6 +26,11 @@ def test_wheel_installs_and_loads_bundled_grippers(tmp_path):
     for gripper in ("paper-parallel", "flat-parallel", "three-finger"):
         assert f"isf/_bundled_grippers/{gripper}/{gripper}.urdf" in names
     assert "isf/planning/plan.schema.json" in names
+    assert "isf/py.typed" in names  # PEP 561: type checkers read isf's annotations
+    packages = {name.rsplit("/", 1)[0] for name in names if name.endswith("/__init__.py")}
+    assert {"isf/fitting", "isf/collision", "isf/repair", "isf/search", "isf/gripper",
+            "isf/object", "isf/planning", "isf/registration", "isf/samplers",
+            "isf/compiled"} <= packages
 
     site = tmp_path / "site"
     subprocess.run([sys.executable, "-m", "pip", "install", "--no-deps", "-q", "--target", str(site),

@@ -2,8 +2,8 @@
 
 import numpy as np
 import pytest
-
 from _builders import random_rotation
+
 from isf.fitting._palm_step import palm_step
 from isf.se3 import exp_so3, rotation_angle, skew
 
@@ -14,7 +14,8 @@ def _unit(v):
 
 def paper_least_squares(p, n_p, q, n_q, alpha):
     """x = (A^T A)^-1 A^T b with rows (5a)-(5b) and the normal rows of (8), stacked as in (10)."""
-    A = np.vstack([np.c_[np.cross(p, n_q), n_q], np.c_[alpha * np.cross(n_p, n_q), np.zeros_like(n_q)]])
+    A = np.vstack([np.c_[np.cross(p, n_q), n_q],
+                   np.c_[alpha * np.cross(n_p, n_q), np.zeros_like(n_q)]])
     b = np.r_[np.einsum("ij,ij->i", q - p, n_q), -alpha * np.einsum("ij,ij->i", n_p, n_q) - alpha]
     return np.linalg.lstsq(A, b, rcond=None)[0]
 
@@ -60,3 +61,18 @@ def test_rotation_step_is_limited():
     p = q @ R_big
     T = palm_step(p, -(n_q @ R_big), q, n_q, normal_weight=0.01, max_rotation=0.3)
     assert rotation_angle(T[:3, :3]) == pytest.approx(0.3, abs=1e-9)
+
+
+def test_compiled_palm_motion_equals_the_reference_palm_step():
+    """The engine's compiled solve of the palm step (partial-pivoting elimination, Rodrigues)
+    gives the motion of the reference's numpy solve."""
+    from isf.fitting import reference
+
+    rng = np.random.default_rng(3)
+    p = rng.normal(scale=0.02, size=(50, 3))
+    n_p, n_q = _unit(rng.normal(size=(50, 3))), _unit(rng.normal(size=(50, 3)))
+    q = p + rng.normal(scale=0.003, size=p.shape)
+    for max_rotation in (np.pi, 0.01):
+        np.testing.assert_allclose(
+            palm_step(p, n_p, q, n_q, normal_weight=0.01, max_rotation=max_rotation),
+            reference.palm_step(p, n_p, q, n_q, 0.01, max_rotation), rtol=0, atol=1e-12)

@@ -12,11 +12,6 @@ from isf.repair.clearance import ClearanceRepair, repair_penetration
 
 
 @pytest.fixture(scope="module")
-def hand():
-    return isf.load_gripper("three-finger")
-
-
-@pytest.fixture(scope="module")
 def block():
     """A box the size of a hand's grasp: fits often end with a link in it, so repairs run."""
     return isf.open_object("shape:box", scale=3.0, max_points=1500)

@@ -7,16 +7,6 @@ import trimesh
 import isf
 
 
-@pytest.fixture(scope="module")
-def paper_gripper():
-    return isf.load_gripper("paper-parallel")
-
-
-@pytest.fixture(scope="module")
-def cylinder():
-    return isf.open_object("shape:cylinder")
-
-
 def test_same_seed_same_result(paper_gripper, cylinder):
     a = isf.plan(paper_gripper, cylinder, samples=6, seed=3)
     b = isf.plan(paper_gripper, cylinder, samples=6, seed=3)
@@ -25,7 +15,8 @@ def test_same_seed_same_result(paper_gripper, cylinder):
         np.testing.assert_array_equal(ga.T_object_gripper, gb.T_object_gripper)
         np.testing.assert_array_equal(ga.q, gb.q)
     c = isf.plan(paper_gripper, cylinder, samples=6, seed=4)
-    assert any(not np.array_equal(x.T_object_gripper, y.T_object_gripper) for x, y in zip(a.grasps, c.grasps))
+    assert any(not np.array_equal(x.T_object_gripper, y.T_object_gripper)
+               for x, y in zip(a.grasps, c.grasps))
 
 
 def test_ranking_and_stats(paper_gripper, cylinder):
@@ -65,7 +56,8 @@ def test_table_rejects_grasps_below_it():
 
 
 def spheres_and_rod():
-    """Five 5 cm spheres (too big for a 3 cm jaw) far apart, and one 16 mm rod that fits the grooves."""
+    """Five 5 cm spheres (too big for a 3 cm jaw) far apart, and one 16 mm rod that fits the
+    grooves."""
     parts = [trimesh.creation.icosphere(subdivisions=3, radius=0.025).apply_translation(
         [0.2 * np.cos(a), 0.2 * np.sin(a), 0.0]) for a in np.linspace(0, 2 * np.pi, 6)[:5]]
     parts.append(trimesh.creation.cylinder(radius=0.008, height=0.05, sections=48))
@@ -93,3 +85,46 @@ def test_bad_samples_argument(paper_gripper, cylinder):
         isf.plan(paper_gripper, cylinder, samples=0)
     with pytest.raises(isf.SamplerNotFound, match="regret"):
         isf.plan(paper_gripper, cylinder, samples=1, sampler="no-such-sampler")
+
+
+@pytest.mark.parametrize("batch_size", [1, 3])
+def test_each_sample_is_proposed_fitted_checked_and_observed(paper_gripper, cylinder, batch_size):
+    """Algorithm 3's loop, one sample at a time or in lockstep batches: every grasp is the fit
+    :func:`isf.fit` makes from its proposal, checked for collisions, and the sampler hears its
+    error and collision verdict."""
+    from isf.collision.checker import CollisionChecker
+    from isf.samplers import UniformSampler
+
+    class Recording(UniformSampler):
+        name = "recording"
+
+        def reset(self, obj, gripper, rng):
+            super().reset(obj, gripper, rng)
+            self.proposals, self.outcomes = [], []
+
+        def propose(self, n, rng):
+            proposals = [isf.Proposal(p.T_object_gripper, p.q, {"index": len(self.proposals)})
+                         for p in super().propose(n, rng)]
+            self.proposals += proposals
+            return proposals
+
+        def observe(self, outcomes):
+            self.outcomes += outcomes
+
+    sampler = Recording()
+    result = isf.plan(paper_gripper, cylinder, samples=5, seed=2, sampler=sampler,
+                      batch_size=batch_size, repair_collisions=False, working_spacing=None)
+    checker = CollisionChecker(paper_gripper, cylinder)
+    heard = {o.proposal.record["index"]: o for o in sampler.outcomes}
+    assert sorted(heard) == list(range(5))
+    for grasp in result.grasps:
+        proposal = sampler.proposals[grasp.sample_index]
+        alone = isf.fit(paper_gripper, cylinder, proposal.T_object_gripper, proposal.q)
+        np.testing.assert_array_equal(grasp.T_object_gripper, alone.T_object_gripper)
+        np.testing.assert_array_equal(grasp.q, alone.q)
+        report = checker.check(alone.T_object_gripper, alone.q)
+        assert grasp.collision_free == report.collision_free
+        outcome = heard[grasp.sample_index]
+        assert outcome.collision_free == report.collision_free
+        if alone.all_surfaces_in_contact:
+            assert outcome.error == alone.mean_distance

@@ -22,7 +22,7 @@ import trimesh
 
 import isf
 from isf.assets import AssetFetchError, YCBNotFoundError, benchmark_object, vendor_gripper
-from isf.registration.tagging import (
+from isf.registration import (
     ContactSpec,
     RegistrationError,
     suggest_approach,

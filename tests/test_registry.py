@@ -17,8 +17,8 @@ from isf.samplers import (
     get_sampler,
     refresh_samplers,
     register_sampler,
+    registry,
 )
-from isf.samplers import registry
 
 
 class FakeEntryPoint:

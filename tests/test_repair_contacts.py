@@ -4,17 +4,15 @@ surfaces as groups, of the contact points the gripper's kinematics place."""
 import numpy as np
 import pytest
 
-import isf
 from isf.fitting.correspondence import match_many
+from isf.fitting.segments import Segments
 from isf.repair._contacts import contact_pairs
 from isf.se3 import exp_so3, make_transform
-from isf.fitting.segments import Segments
 
 
 @pytest.fixture(scope="module")
-def hand_and_cylinder():
-    return isf.load_gripper("three-finger"), isf.open_object("shape:cylinder", scale=3.0,
-                                                              max_points=1500)
+def hand_and_cylinder(hand, hand_cylinder):
+    return hand, hand_cylinder
 
 
 @pytest.mark.parametrize("max_normal_angle", [1.5, np.pi])

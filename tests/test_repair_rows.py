@@ -13,12 +13,12 @@ import pytest
 import trimesh
 
 import isf
-from isf.repair.clearance import ClearanceRepair
-from isf.collision.surface_distance import NEIGHBOURS
 from isf.collision.convex_elements import ConvexElements, _reach_box
-from isf.search.point_grid import PointGrid
-from isf.repair.rows import deepest_rows, undecided
+from isf.collision.surface_distance import NEIGHBOURS
 from isf.repair._step import to_object
+from isf.repair.clearance import ClearanceRepair
+from isf.repair.rows import deepest_rows, undecided
+from isf.search.point_grid import PointGrid
 
 ACTIVATION, MAX_ROWS = 0.008, 12
 
@@ -151,10 +151,9 @@ def test_reach_box_holds_every_point_less_than_the_margin_above_all_faces(margin
 
 # ------------------------------------------------------------- rows at whole repair states
 @pytest.fixture(scope="module")
-def hand_on_cylinder():
+def hand_on_cylinder(hand, hand_cylinder):
     """The three-finger hand and a closed mesh cylinder the repair resamples densely."""
-    obj = isf.open_object("shape:cylinder", scale=3.0, max_points=1500)
-    return isf.load_gripper("three-finger"), obj
+    return hand, hand_cylinder
 
 
 def reference_violations(repairer: ClearanceRepair, T, R, p):

@@ -3,16 +3,9 @@ homogeneous transforms, finite differences of the real kinematics, and the QP wr
 numpy."""
 
 import numpy as np
-import pytest
 
-import isf
 from isf.repair._step import motion_rows, step_qp, to_object
 from isf.se3 import exp_so3, make_transform
-
-
-@pytest.fixture(scope="module")
-def hand():
-    return isf.load_gripper("three-finger")
 
 
 def _random_pose(rng):
@@ -49,7 +42,7 @@ def test_motion_rows_predict_the_motion_of_points_under_a_small_step(hand):
     centre = rng.normal(scale=0.05, size=3)
     rows = motion_rows(T, R, p, J, owner, local, centre, normals)
     before = to_object(T, R, p, owner, local)
-    for trial in range(8):
+    for _ in range(8):
         x = 1e-6 * rng.normal(size=6 + hand.n_joints)
         turn = exp_so3(x[3:6])
         T1 = make_transform(turn @ T[:3, :3], turn @ (T[:3, 3] - centre) + centre + x[:3])

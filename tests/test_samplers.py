@@ -100,7 +100,7 @@ class _NotFinite(_Broken):
 
 class _NumpyGlobal(_Broken):
     def _edit(self, proposals, rng):
-        np.random.uniform()
+        np.random.uniform()  # noqa: NPY002 (the global RNG a sampler must not use)
         return proposals
 
 

@@ -24,8 +24,8 @@ import trimesh
 import yourdfpy
 
 from isf import assets
-from isf.gripper.model import Gripper
 from isf.gripper.loading import inspect_gripper, load_gripper
+from isf.gripper.model import Gripper
 
 VENDORS = ("franka-hand", "robotiq-2f-85", "allegro-right", "pr2-gripper")
 ISF_NS = "urn:isf:gripper:1"  # docs/gripper-tags.md

@@ -8,12 +8,12 @@ from scipy.spatial import cKDTree
 import isf
 from isf.exceptions import InvalidInputError
 from isf.object.surface import ObjectSurface
-from isf.planning._working_surface import SPACING_FACTOR, contact_spacing, working_spacing, working_surface
-
-
-@pytest.fixture(scope="module")
-def paper_gripper():
-    return isf.load_gripper("paper-parallel")
+from isf.planning._working_surface import (
+    SPACING_FACTOR,
+    contact_spacing,
+    working_spacing,
+    working_surface,
+)
 
 
 def dense_sphere(n=40_000, radius=0.02, seed=0) -> ObjectSurface:

@@ -18,12 +18,12 @@ from __future__ import annotations
 
 import numpy as np
 import trimesh
-from numba import njit
 from scipy.spatial import cKDTree
 
-from .surface_distance import NEIGHBOURS, TangentPlanes, estimate
+from ..compiled.kernels import kernel
 from ..gripper.model import LinkGeometry
 from ..search.nearest import search_scratch
+from .surface_distance import NEIGHBOURS, TangentPlanes, estimate
 
 SAMPLE_SPACING = 0.001  # gripper surface samples, m
 MAX_SAMPLES = 800  # per element (spacing grows on large elements)
@@ -46,7 +46,7 @@ def even_samples(mesh: trimesh.Trimesh, spacing: float, max_points: int,
     return points, mesh.face_normals[face]
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@kernel(inline=True)
 def _segment_distance2(px, py, pz, ax, ay, az, bx, by, bz):
     """Squared distance from ``p`` to the segment ``ab``."""
     dx, dy, dz = bx - ax, by - ay, bz - az
@@ -55,7 +55,7 @@ def _segment_distance2(px, py, pz, ax, ay, az, bx, by, bz):
     return (px - ax - s * dx) ** 2 + (py - ay - s * dy) ** 2 + (pz - az - s * dz) ** 2
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@kernel(inline=True)
 def triangle_distance2(px, py, pz, tri, f):
     """Squared distance from ``p`` to triangle ``tri[f]`` ((F, 3, 3) corners): the nearest point
     by the triangle's Voronoi regions (Ericson, Real-Time Collision Detection, 5.1.5); a
@@ -80,7 +80,7 @@ def triangle_distance2(px, py, pz, tri, f):
                _segment_distance2(px, py, pz, cx, cy, cz, ax, ay, az))
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@kernel
 def _nearest_triangle_distances(points, triangles):
     out = np.empty(len(points))
     for i in range(len(points)):
@@ -119,7 +119,7 @@ def patches(samples: np.ndarray, area: float, count: int) -> tuple[np.ndarray, n
     return centres, nearest
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@kernel(inline=True)
 def _above(x, y, z, planes):
     """Largest signed distance of ``(x, y, z)`` to the planes ``[n, n . x]`` (F, 4); -inf for none."""
     sd = -np.inf
@@ -128,7 +128,7 @@ def _above(x, y, z, planes):
     return sd
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@kernel(inline=True)
 def _node_value(values, lo, h, x, y, z):
     """``values`` (grid with corner ``lo``, spacing ``h``) at the node nearest ``(x, y, z)``; inf
     off the grid."""
@@ -140,7 +140,7 @@ def _node_value(values, lo, h, x, y, z):
     return np.inf
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@kernel(inline=True)
 def _in_box(points, i, pose, bounds):
     """Point ``i`` of ``points`` (M, 3) in the frame ``pose`` (4, 4) places, and whether it lies
     in the box ``bounds`` (2, 3) there."""
@@ -153,7 +153,7 @@ def _in_box(points, i, pose, bounds):
     return a, b, c, inside
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@kernel
 def convex_depth(points, pose, bounds, planes):
     """Deepest of the object points (M, 3), object frame, inside a convex element posed at
     ``pose`` (4, 4) with link-frame box ``bounds`` (2, 3) and face planes ``planes`` (F, 4) as
@@ -166,7 +166,7 @@ def convex_depth(points, pose, bounds, planes):
     return max(0.0, -low)
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@kernel
 def non_convex_depth(points, pose, bounds, tolerance, hull_planes, field, field_lo, field_h,
                      surface_points, surface_normals, tree, neighbours):
     """Deepest of the object points (M, 3), object frame, inside a closed non-convex element
@@ -175,7 +175,7 @@ def non_convex_depth(points, pose, bounds, tolerance, hull_planes, field, field_
     Points outside its link-frame box ``bounds`` (2, 3) or its convex hull (face planes
     ``hull_planes`` (G, 4); none when G = 0) are outside; the rest get the tangent-plane estimate
     of its surface (``surface_points``, ``surface_normals`` (N, 3), their ``tree``
-    (:attr:`isf.search.nearest.NearestPoints.tree`), ``neighbours``): all of them when few, else those
+    (:class:`isf.search.kdtree.KDTree`), ``neighbours``): all of them when few, else those
     its grid (``field`` values at nodes ``field_lo + field_h * index``, see
     :class:`SignedDistanceGrid`) finds deepest (the ``_FIELD_DEEPEST`` deepest-looking, ties to
     the earlier point) or possibly deeper than ``tolerance``.
@@ -205,14 +205,13 @@ def non_convex_depth(points, pose, bounds, tolerance, hull_planes, field, field_
             found = min(found + 1, _FIELD_DEEPEST)
         for j in range(found):
             keep[top[j]] = True
-    stack_node, stack_bound, stack_offset = search_scratch()
+    stack = search_scratch()
     best_d2, best = np.empty(neighbours), np.empty(neighbours, np.int64)
     depth = 0.0
     for i in range(n):
         if keep[i]:
-            sd = estimate(local[i, 0], local[i, 1], local[i, 2], best_d2, best, surface_points,
-                          surface_normals, tree[0], tree[1], tree[2], tree[3], tree[4], tree[5], tree[6],
-                          tree[7], stack_node, stack_bound, stack_offset)[0]
+            sd, _, _, _ = estimate(local[i, 0], local[i, 1], local[i, 2], best_d2, best,
+                                   surface_points, surface_normals, tree, stack)
             depth = max(depth, -sd)
     return depth
 
@@ -285,7 +284,7 @@ class Element:
         hull = self.hull_planes if self.hull_planes is not None else np.empty((0, 4))
         s, f = self.surface, self.field
         return non_convex_depth(points, pose, self.bounds, tolerance, hull, f.values, f.lo, f.h, s.points,
-                                s.normals, s.tree.tree, min(NEIGHBOURS, len(s.points)))
+                                s.normals, s.tree.tree.kd, min(NEIGHBOURS, len(s.points)))
 
 
 class SignedDistanceGrid:

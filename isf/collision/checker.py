@@ -82,18 +82,31 @@ import logging
 import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import coal
 import numpy as np
-from numba import njit
 
-from ._elements import Element, even_samples, point_triangle_distance
-from .kernel import PREDICTION_ERROR, PREDICTION_SLOPE, check_elements, reverse_clearance
-from .surface_distance import NEIGHBOURS, TangentPlanes, closed_mesh, mesh_memo
-from .voxels import SurfaceVoxels, kernel_arrays
+from ..compiled.kernels import kernel
 from ..exceptions import GripperDescriptionError, InvalidInputError
 from ..gripper.model import Gripper
 from ..object.surface import ObjectSurface
+from ..search.kdtree import KDTree
+from ._elements import Element, even_samples, point_triangle_distance
+from .kernel import (
+    PREDICTION_ERROR,
+    PREDICTION_SLOPE,
+    Elements,
+    Interiors,
+    Obstacles,
+    Patches,
+    Probes,
+    Surface,
+    check_elements,
+    reverse_clearance,
+)
+from .surface_distance import NEIGHBOURS, TangentPlanes, closed_mesh, mesh_memo
+from .voxels import SurfaceVoxels, kernel_arrays
 
 __all__ = ["CollisionChecker", "CollisionReport", "Plane"]
 
@@ -106,7 +119,7 @@ _CLEARANCE_EXACT = 3  # of the clearance candidates, how many get the exact dist
 _REVERSE_PROBES = 4  # object samples whose distance to the nearest-looking elements is measured
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@kernel
 def _rigid(T):
     """Is the finite 4x4 ``T`` a rigid transform: rotation orthonormal to 1e-6, last row
     ``[0 0 0 1]`` to 1e-12?"""
@@ -151,8 +164,7 @@ def _bvh(vertices: np.ndarray, faces: np.ndarray) -> coal.BVHModelOBBRSS:
 
 
 def object_bvh(obj: ObjectSurface) -> coal.BVHModelOBBRSS:
-    """The coal BVH of a mesh object's triangles, built once per mesh (0.27-0.33 s for the 85k
-    triangles of the benchmark bunny, ``docs/benchmarks.md``; see
+    """The coal BVH of a mesh object's triangles, built once per mesh (see
     :func:`isf.collision.surface_distance.mesh_memo`)."""
     memo = mesh_memo(obj)
     if "bvh" not in memo:
@@ -235,8 +247,7 @@ class CollisionChecker:
     Build it once per (gripper, object) pair; :meth:`check` is then cheap (what it derives
     from the gripper and from a mesh object is kept while they live, so building another for
     the same gripper or object is cheap too), and
-    :meth:`check_many` checks a batch of poses (for now one :meth:`check` each; no work is
-    shared across grasps yet).
+    :meth:`check_many` checks a batch of poses (one :meth:`check` each).
 
     Args:
         gripper: the gripper; every one of its ``geometries`` is checked.
@@ -283,15 +294,15 @@ class CollisionChecker:
         # random samples leave gaps a few spacings wide; 0 for a bare point cloud).
         self._cover = 3.0 * self._surface.spacing if obj.is_mesh else 0.0
         self._kernel_args = (
-            (np.array([p.normal for p in self.obstacles]).reshape(-1, 3),
-             np.array([p.offset for p in self.obstacles], dtype=float)),
-            tuple(packed[name] for name in _ELEMENT_ARRAYS),
-            tuple(packed[name] for name in _PATCH_ARRAYS),
-            (self._surface.points, self._surface.normals, self._surface.tree.tree, self._lo, self._hi,
-             self._cover, min(NEIGHBOURS, len(self._surface.points))),
+            Obstacles(np.array([p.normal for p in self.obstacles]).reshape(-1, 3),
+                      np.array([p.offset for p in self.obstacles], dtype=float)),
+            Elements(**{name: packed["_" + name] for name in Elements._fields}),
+            Patches(**{name: packed["_" + name] for name in Patches._fields}),
+            Surface(self._surface.points, self._surface.normals, self._surface.tree.tree, self._lo,
+                    self._hi, self._cover, min(NEIGHBOURS, len(self._surface.points))),
             _probe_grid(self._points),
             kernel_arrays(self._voxels),
-            tuple(packed[name] for name in _INTERIOR_ARRAYS))
+            packed["interiors"])
         self.estimates = 0
         """Exact tangent-plane estimates of the object's surface made by the checks so far (a
         cost diagnostic)."""
@@ -360,7 +371,16 @@ class CollisionChecker:
 
 
 # ---------------------------------------------------------------------- set-up
-_PREPARED: dict[int, tuple[weakref.ref, list[Element], dict, dict]] = {}
+class _Prepared(NamedTuple):
+    """A gripper's prepared elements (:func:`_prepared`), with a weak reference to the gripper."""
+
+    gripper: weakref.ref
+    elements: list[Element]
+    packed: dict
+    state: dict
+
+
+_PREPARED: dict[int, _Prepared] = {}
 
 
 def _prepared(gripper: Gripper, links: list[str]) -> tuple[list[Element], dict, dict]:
@@ -368,15 +388,16 @@ def _prepared(gripper: Gripper, links: list[str]) -> tuple[list[Element], dict, 
     (:func:`_packed`) and the state of the random generator after sampling them; built once
     per gripper (its parts are treated as immutable) and kept while it lives."""
     entry = _PREPARED.get(id(gripper))
-    if entry is not None and entry[0]() is gripper:
-        return entry[1], entry[2], entry[3]
+    if entry is not None and entry.gripper() is gripper:
+        return entry.elements, entry.packed, entry.state
     rng = np.random.default_rng(0)
     elements = [Element(g, links.index(g.link), rng) for g in gripper.geometries]
     _mark_contact_elements(elements, gripper)
     state = rng.bit_generator.state
-    _PREPARED[id(gripper)] = (weakref.ref(gripper), elements, _packed(elements), state)
+    entry = _Prepared(weakref.ref(gripper), elements, _packed(elements), state)
+    _PREPARED[id(gripper)] = entry
     weakref.finalize(gripper, _PREPARED.pop, id(gripper), None)
-    return _PREPARED[id(gripper)][1:]
+    return entry.elements, entry.packed, entry.state
 
 
 def _mark_contact_elements(elements: list[Element], gripper: Gripper) -> None:
@@ -411,20 +432,9 @@ def _object_surface(obj: ObjectSurface, state: dict) -> TangentPlanes:
     return memo[key]
 
 
-_ELEMENT_ARRAYS = ("_hull", "_hull_start", "_sphere", "_radius", "_contact", "_kind", "_bounds",
-                   "_planes", "_plane_start", "_element_patches", "_last_patch", "_frames")
-_INTERIOR_ARRAYS = ("_hull_planes", "_hull_plane_start", "_field", "_field_start", "_field_shape", "_field_lo",
-                    "_field_h", "_inner_start", "_node_start", "_inner_points", "_inner_normals",
-                    "_tree_points", "_tree_order", "_node_first", "_node_stop", "_node_axis", "_node_split",
-                    "_node_left", "_node_right")
-_PATCH_ARRAYS = ("_samples", "_offsets", "_margin", "_patch_start", "_patch_size", "_patch_radius",
-                 "_patch_margin", "_box_lo", "_box_hi")
-
-
-def _probe_grid(points: np.ndarray, cells: int = 32) -> tuple:
+def _probe_grid(points: np.ndarray, cells: int = 32) -> Probes:
     """The object points (M, 3) in a grid of cubic cells, about ``cells`` along the box's longest
-    side: ``(points by cell, cell_start, corner, edge, shape)`` as
-    :func:`isf.collision.kernel.check_elements` takes them."""
+    side."""
     lo, hi = points.min(axis=0), points.max(axis=0)
     cell = max(float((hi - lo).max()) / cells, 1e-3)
     shape = np.floor((hi - lo) / cell).astype(np.int64) + 1
@@ -432,7 +442,7 @@ def _probe_grid(points: np.ndarray, cells: int = 32) -> tuple:
     index = (key[:, 0] * shape[1] + key[:, 1]) * shape[2] + key[:, 2]
     order = np.argsort(index, kind="stable")
     start = np.r_[0, np.cumsum(np.bincount(index, minlength=int(np.prod(shape))))]
-    return np.ascontiguousarray(points[order]), start, lo, cell, shape
+    return Probes(np.ascontiguousarray(points[order]), start, lo, cell, shape)
 
 
 def _stacked(parts: list[np.ndarray], dtype=float) -> tuple[np.ndarray, np.ndarray]:
@@ -441,32 +451,37 @@ def _stacked(parts: list[np.ndarray], dtype=float) -> tuple[np.ndarray, np.ndarr
             np.r_[0, np.cumsum([len(x) for x in parts])])
 
 
-def _interiors(els: list[Element]) -> dict[str, np.ndarray]:
+def _interiors(els: list[Element]) -> Interiors:
     """The insides of the closed non-convex elements stacked (empty for the others): hull
     planes, grids (values raveled, with their shapes, corners and spacings) and surfaces with
-    their trees (:attr:`isf.search.nearest.NearestPoints.tree`; indices within each element's part)."""
-    parts = [(e.hull_planes if e.hull_planes is not None else np.empty((0, 4)), e.field, e.surface)
-             if e.surface is not None else (np.empty((0, 4)), None, None) for e in els]
-    out = {}
-    out["_hull_planes"], out["_hull_plane_start"] = _stacked([p[0] for p in parts])
-    out["_field"], out["_field_start"] = _stacked(
-        [np.ravel(f.values) if f is not None else np.empty(0) for _, f, _ in parts])
-    out["_field_shape"] = np.array([f.values.shape if f is not None else (0, 0, 0) for _, f, _ in parts])
-    out["_field_lo"] = np.array([f.lo if f is not None else np.zeros(3) for _, f, _ in parts])
-    out["_field_h"] = np.array([f.h if f is not None else 1.0 for _, f, _ in parts])
-    surfaces = [s for _, _, s in parts]
-    out["_inner_points"], out["_inner_start"] = _stacked(
+    their k-d trees (indices within each element's part)."""
+    hulls = [e.hull_planes if e.surface is not None and e.hull_planes is not None
+             else np.empty((0, 4)) for e in els]
+    fields = [e.field if e.surface is not None else None for e in els]
+    surfaces = [e.surface for e in els]
+    hull_planes, hull_start = _stacked(hulls)
+    field, field_start = _stacked([np.ravel(f.values) if f is not None else np.empty(0) for f in fields])
+    inner_points, inner_start = _stacked(
         [s.points if s is not None else np.empty((0, 3)) for s in surfaces])
-    out["_inner_normals"], _ = _stacked([s.normals if s is not None else np.empty((0, 3)) for s in surfaces])
-    trees = [s.tree.tree if s is not None else None for s in surfaces]
-    out["_tree_points"], _ = _stacked([t[0] if t else np.empty((0, 3)) for t in trees])
-    out["_tree_order"], _ = _stacked([t[1] if t else np.empty(0, np.int64) for t in trees], np.int64)
-    nodes = ("_node_first", "_node_stop", "_node_axis", "_node_split", "_node_left", "_node_right")
-    for k, name in enumerate(nodes, start=2):
-        out[name], out["_node_start"] = _stacked(
-            [t[k] if t else np.empty(0, float if name == "_node_split" else np.int64) for t in trees],
-            float if name == "_node_split" else np.int64)
-    return out
+    inner_normals, _ = _stacked([s.normals if s is not None else np.empty((0, 3)) for s in surfaces])
+    trees = [s.tree.tree.kd if s is not None else None for s in surfaces]
+
+    empty = {"points": np.empty((0, 3)), "split": np.empty(0)}
+
+    def stacked_field(name: str) -> np.ndarray:
+        part = empty.get(name, np.empty(0, np.int64))
+        array, _ = _stacked([getattr(t, name) if t else part for t in trees], part.dtype)
+        return array
+
+    tree = KDTree(**{name: stacked_field(name) for name in KDTree._fields})
+    _, node_start = _stacked([t.start if t else np.empty(0, np.int64) for t in trees], np.int64)
+    return Interiors(
+        hull_planes=hull_planes, hull_start=hull_start, field=field, field_start=field_start,
+        field_shape=np.array([f.values.shape if f is not None else (0, 0, 0) for f in fields]),
+        field_lo=np.array([f.lo if f is not None else np.zeros(3) for f in fields]),
+        field_h=np.array([f.h if f is not None else 1.0 for f in fields]),
+        inner_start=inner_start, node_start=node_start, inner_points=inner_points,
+        inner_normals=inner_normals, tree=tree)
 
 
 def _packed(els: list[Element]) -> dict[str, np.ndarray]:
@@ -489,7 +504,7 @@ def _packed(els: list[Element]) -> dict[str, np.ndarray]:
            "_radius": np.array([e.radius for e in els]),
            "_triangles": np.ascontiguousarray(np.concatenate([e.mesh.triangles for e in els]), dtype=float),
            "_triangle_start": np.r_[0, np.cumsum([len(e.mesh.faces) for e in els])]}
-    out.update(_interiors(els))
+    out["interiors"] = _interiors(els)
     samples, offsets, starts, sizes, last, rows = [], [], [], [], [], 0
     for e in els:
         is_centre = np.zeros(len(e.samples), dtype=bool)

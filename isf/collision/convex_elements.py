@@ -17,18 +17,36 @@ from typing import NamedTuple
 
 import numpy as np
 import trimesh
-from numba import njit
 from scipy.spatial import HalfspaceIntersection, QhullError
 
+from ..compiled.kernels import kernel
 from ..search.kdtree import squared_distance
 from ..search.point_grid import PointGrid, ball_box_candidates
 
-__all__ = ["ConvexElements", "ConvexRows"]
+__all__ = ["ConvexElements", "ConvexRows", "ConvexShapes"]
 
 MAX_PLANES = 128
 """Face planes kept per element (spread-out normals): a subset of a convex element's face
 planes bounds a slightly larger polytope, which errs on the safe side and keeps a finely
 tessellated sphere cheap (1280 faces -> 128 planes: ~0.2 mm larger at 12 mm)."""
+
+
+class ConvexShapes(NamedTuple):
+    """The convex elements' shapes, C elements, link frames."""
+
+    centres: np.ndarray
+    """Inner points (the vertices' mean), (C, 3) float64, m."""
+    radii: np.ndarray
+    """Radii of the balls about them that hold the elements, (C,) float64, m."""
+    extents: np.ndarray
+    """How deep a point may lie in each element (:func:`_extent`), (C,) float64, m."""
+    floors: np.ndarray
+    """The rows' floors, (C,) float64, m."""
+    planes: np.ndarray
+    """Outward face planes ``[n, d]``, (P, 4) float64; element ``c``'s are
+    ``plane_start[c]:plane_start[c + 1]``."""
+    plane_start: np.ndarray
+    """(C + 1,) int64."""
 
 
 class ConvexRows(NamedTuple):
@@ -50,7 +68,7 @@ class ConvexRows(NamedTuple):
     point: np.ndarray
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@kernel
 def _spread(directions, count):
     """Indices (at most ``count``) of rows of ``directions`` (N, 3) in farthest-point order."""
     n = len(directions)
@@ -69,15 +87,27 @@ def _spread(directions, count):
     return chosen
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@kernel(inline=True)
 def _distance(points, i, j):
     """Distance between rows ``i`` and ``j`` of ``points`` (N, 3)."""
     return np.sqrt(squared_distance(points, i, points[j, 0], points[j, 1], points[j, 2]))
 
 
-def _face_planes(vertices: np.ndarray, faces: np.ndarray):
-    """Outward face planes ``(n, d)`` (P, 4) (spread-out order), centre (3,), radius and extent
-    (see :func:`_extent`) of a closed convex mesh, or None when the mesh is not one."""
+class _Faces(NamedTuple):
+    """A closed convex mesh's face planes and bounds (:func:`_face_planes`)."""
+
+    planes: np.ndarray
+    """Outward face planes ``[n, d]`` (P, 4), spread-out order."""
+    centre: np.ndarray
+    """The vertices' mean, (3,), m."""
+    radius: float
+    """Distance from the centre to the farthest vertex, m."""
+    extent: float
+    """:func:`_extent` of the planes, m."""
+
+
+def _face_planes(vertices: np.ndarray, faces: np.ndarray) -> _Faces | None:
+    """The :class:`_Faces` of a closed convex mesh, or None when the mesh is not one."""
     mesh = trimesh.Trimesh(np.asarray(vertices, float), np.asarray(faces, np.int64))
     if not (len(mesh.faces) and mesh.is_watertight and mesh.is_winding_consistent and
             mesh.is_convex):
@@ -87,7 +117,7 @@ def _face_planes(vertices: np.ndarray, faces: np.ndarray):
     planes = np.c_[n, np.einsum("ij,ij->i", n, mesh.triangles[:, 0])][kept]
     centre = mesh.vertices.mean(axis=0)
     radius = float(np.linalg.norm(mesh.vertices - centre, axis=1).max())
-    return planes, centre, radius, _extent(planes, centre, radius, len(kept) < len(n))
+    return _Faces(planes, centre, radius, _extent(planes, centre, radius, len(kept) < len(n)))
 
 
 def _extent(planes: np.ndarray, centre: np.ndarray, radius: float, dropped: bool) -> float:
@@ -131,13 +161,13 @@ class ConvexElements:
         self.element = np.array([e for e, _ in found], dtype=np.int64)
         self.owner = np.asarray(owner, dtype=np.int64)[self.element]
         self.floor = np.asarray(floor, dtype=float)[self.element]
-        sizes = [len(f[0]) for _, f in found]
+        sizes = [len(f.planes) for _, f in found]
         self._plane_start = np.r_[0, np.cumsum(sizes)].astype(np.int64)
-        self._planes = np.concatenate([f[0] for _, f in found]) if found else np.zeros((0, 4))
-        self._centre = np.array([f[1] for _, f in found]).reshape(-1, 3)
-        self._radius = np.array([f[2] for _, f in found])
+        self._planes = np.concatenate([f.planes for _, f in found]) if found else np.zeros((0, 4))
+        self._centre = np.array([f.centre for _, f in found]).reshape(-1, 3)
+        self._radius = np.array([f.radius for _, f in found])
         # of the polytope of the kept planes (larger than the element when planes were dropped)
-        self._extent = np.array([f[3] for _, f in found])
+        self._extent = np.array([f.extent for _, f in found])
         self._boxes: dict[float, np.ndarray] = {}  # reach -> _reach_box of every element
 
     def __len__(self) -> int:
@@ -153,9 +183,10 @@ class ConvexElements:
         R_links = T[:3, :3] @ R[self.owner]  # element (link) rotations in the object frame
         origins = p[self.owner] @ T[:3, :3].T + T[:3, 3]
         boxes = self._reach_boxes(float(reach))
-        return ConvexRows(*_rows(grid.points, *grid.arrays, R_links, origins, self._centre,
-                                 self._radius, self._extent, boxes, self.floor, self._planes,
-                                 self._plane_start, float(reach), int(keep)))
+        shapes = ConvexShapes(self._centre, self._radius, self._extent, self.floor, self._planes,
+                              self._plane_start)
+        return ConvexRows(*_rows(grid.points, grid.arrays, R_links, origins, shapes, boxes,
+                                 float(reach), int(keep)))
 
     def _reach_boxes(self, reach: float) -> np.ndarray:
         """:func:`_reach_box` of every element for ``reach`` (C, 2, 3), computed once per reach
@@ -187,16 +218,19 @@ def _reach_box(planes: np.ndarray, centre: np.ndarray, margin: float) -> np.ndar
     return np.array([corners.min(axis=0) - pad, corners.max(axis=0) + pad])
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def _rows(points, order, start, lo, cell, shape, R_links, origins, centres, radii, extents, boxes,
-          floors, planes, plane_start, reach, keep):
+@kernel
+def _rows(points, cells, R_links, origins, shapes, boxes, reach, keep):
     """:meth:`ConvexElements.rows`, compiled: (element (K,), foot (K, 3), normal (K, 3), depth
-    (K,), point (K,)). An element's candidates are the points in its ball that lie in its
-    reach box (``boxes`` (C, 2, 3), :func:`_reach_box`; a point outside it is at least the
-    reach above some face plane). They are tried nearest to its centre first (likely the
-    deepest), so that the points shallower than ``keep`` rows found are soon skipped; rows
-    found before ``keep`` deeper ones are dropped at the end, so the rows do not depend on
-    the order."""
+    (K,), point (K,)) of the object points (N, 3) in their grid ``cells``
+    (:class:`isf.search.point_grid.GridCells`) and the elements ``shapes`` (:class:`ConvexShapes`)
+    at rotations ``R_links`` (C, 3, 3) and origins ``origins`` (C, 3), object frame. An element's
+    candidates are the points in its ball that lie in its reach box (``boxes`` (C, 2, 3),
+    :func:`_reach_box`; a point outside it is at least the reach above some face plane). They
+    are tried nearest to its centre first (likely the deepest), so that the points shallower
+    than ``keep`` rows found are soon skipped; rows found before ``keep`` deeper ones are
+    dropped at the end, so the rows do not depend on the order."""
+    centres, radii, extents, floors = shapes.centres, shapes.radii, shapes.extents, shapes.floors
+    planes, plane_start = shapes.planes, shapes.plane_start
     capacity = 256
     element, foot = np.empty(capacity, np.int64), np.empty((capacity, 3))
     normal, depth = np.empty((capacity, 3)), np.empty(capacity)
@@ -220,8 +254,7 @@ def _rows(points, order, start, lo, cell, shape, R_links, origins, centres, radi
         hint = plane_start[c]
         n_ball = 0
         n_central = 0
-        n_near = ball_box_candidates(centre, radii[c] + reach, R, o, box_lo, box_hi, order, start,
-                                     lo, cell, shape, near)
+        n_near = ball_box_candidates(centre, radii[c] + reach, R, o, box_lo, box_hi, cells, near)
         for k in near[:n_near]:
             d2 = 0.0
             for i in range(3):
@@ -300,7 +333,7 @@ def _rows(points, order, start, lo, cell, shape, R_links, origins, centres, radi
             depth[:count].copy(), point[:count].copy())
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@kernel(inline=True)
 def _deepest_face(local, planes, first, last, limit, floor, cut):
     """The face plane (rows ``first:last`` of ``planes``) a point ``local`` (3,) lies highest
     above and that height, ``(height, face)``; or, when the point is out by ``limit`` or more
@@ -317,7 +350,7 @@ def _deepest_face(local, planes, first, last, limit, floor, cut):
     return best, face
 
 
-@njit(cache=True, nogil=True)
+@kernel(error_model="python")
 def _grow(values, capacity):
     """``values`` copied into a longer array of ``capacity`` rows."""
     out = np.empty((capacity,) + values.shape[1:], values.dtype)

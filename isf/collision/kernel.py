@@ -16,14 +16,17 @@ element's rows are contiguous.
 
 from __future__ import annotations
 
-import numpy as np
-from numba import njit
+from typing import NamedTuple
 
+import numpy as np
+
+from ..compiled.kernels import kernel
 from ..search import kdtree
+from ..search.kdtree import KDTree, SearchScratch
+from ..search.nearest import SearchArrays, nearest_point, search_scratch
 from ._elements import convex_depth, non_convex_depth, triangle_distance2
 from .surface_distance import NEIGHBOURS, estimate
-from .voxels import box_clear, distance_below
-from ..search.nearest import nearest_point, search_scratch
+from .voxels import VoxelArrays, box_clear, distance_below
 
 # The first-order prediction of the signed distance at a sample from its patch centre is trusted
 # to within PREDICTION_ERROR + PREDICTION_SLOPE * (the distance to the centre).
@@ -36,8 +39,221 @@ CULL_MARGIN = 5e-4  # an element whose bounding sphere is this far outside the o
 VOXEL_MARGIN = 2e-3  # a box this far inside voxels outside a mesh object is outside it, m
 ROUNDS = 3  # refinement rounds at most
 
+__all__ = ["Elements", "Interiors", "Obstacles", "Patches", "Probes", "Surface", "VoxelArrays",
+           "check_elements", "reverse_clearance"]
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+
+class Obstacles(NamedTuple):
+    """The obstacle planes, P of them, object frame: ``n . x >= offset`` is free."""
+
+    normals: np.ndarray
+    """Unit normals, (P, 3) float64."""
+    offsets: np.ndarray
+    """Offsets along the normals, (P,) float64, m."""
+
+
+class Elements(NamedTuple):
+    """The gripper's geometry elements, E of them, link frames, stacked."""
+
+    hull: np.ndarray
+    """Hull vertices, (H, 3) float64, m; element ``e``'s are ``hull_start[e]:hull_start[e + 1]``."""
+    hull_start: np.ndarray
+    """(E + 1,) int64."""
+    sphere: np.ndarray
+    """Bounding sphere centres, (E, 3) float64, m."""
+    radius: np.ndarray
+    """Bounding sphere radii, (E,) float64, m."""
+    contact: np.ndarray
+    """Whether each element carries a contact surface, (E,) bool."""
+    kind: np.ndarray
+    """0 open, 1 closed convex, 2 closed non-convex, (E,) int64."""
+    bounds: np.ndarray
+    """Link-frame boxes ``[lo, hi]``, (E, 2, 3) float64, m."""
+    planes: np.ndarray
+    """Convex elements' face planes ``[n, n . x]``, (F, 4) float64; element ``e``'s are
+    ``plane_start[e]:plane_start[e + 1]``."""
+    plane_start: np.ndarray
+    """(E + 1,) int64."""
+    element_patches: np.ndarray
+    """Element ``e``'s patches are ``element_patches[e]:element_patches[e + 1]``, (E + 1,) int64."""
+    last_patch: np.ndarray
+    """The patch of each element's last vertex, (E,) int64."""
+    frames: np.ndarray
+    """The link of each element (index into the checked links), (E,) int64."""
+
+
+class Patches(NamedTuple):
+    """The elements' surface samples grouped in patches, S samples and P patches, link frames:
+    patch ``p``'s samples are ``patch_start[p]:patch_start[p] + patch_size[p]``, centre first."""
+
+    samples: np.ndarray
+    """(S, 3) float64, m."""
+    offsets: np.ndarray
+    """Each sample's offset from its patch centre, (S, 3) float64, m."""
+    margin: np.ndarray
+    """Each sample's prediction bound (0 at the centres), (S,) float64, m."""
+    patch_start: np.ndarray
+    """(P,) int64."""
+    patch_size: np.ndarray
+    """(P,) int64."""
+    patch_radius: np.ndarray
+    """The largest offset of each patch, (P,) float64, m."""
+    patch_margin: np.ndarray
+    """The prediction bound at that radius, (P,) float64, m."""
+    box_lo: np.ndarray
+    """The low corner of the box of each patch's offsets, (P, 3) float64, m."""
+    box_hi: np.ndarray
+    """Its high corner, (P, 3) float64, m."""
+
+
+class Surface(NamedTuple):
+    """The object's tangent planes (:class:`isf.collision.surface_distance.TangentPlanes`), N
+    points."""
+
+    points: np.ndarray
+    """(N, 3) float64, m."""
+    normals: np.ndarray
+    """Outward unit normals, (N, 3) float64."""
+    tree: SearchArrays
+    """Their search (:attr:`isf.search.nearest.NearestPoints.tree`)."""
+    lo: np.ndarray
+    """The low corner of the object's box, (3,) float64, m."""
+    hi: np.ndarray
+    """Its high corner, (3,) float64, m."""
+    cover: float
+    """Distance from the object's surface to its nearest point, at most, m."""
+    neighbours: int
+    """The tangent planes of an estimate (:data:`isf.collision.surface_distance.NEIGHBOURS`, at
+    most N)."""
+
+
+class Probes(NamedTuple):
+    """The object's own points (those tested inside elements), M of them, in a grid of cubic
+    cells: those of cell ``(a, b, c)`` are ``points[cell_start[i]:cell_start[i + 1]]`` with
+    ``i = (a * shape[1] + b) * shape[2] + c``."""
+
+    points: np.ndarray
+    """(M, 3) float64, m, by cell."""
+    cell_start: np.ndarray
+    """(cells + 1,) int64."""
+    lo: np.ndarray
+    """The grid's corner, (3,) float64, m."""
+    cell: float
+    """The cells' edge, m."""
+    shape: np.ndarray
+    """Cells along each axis, (3,) int64."""
+
+
+class Interiors(NamedTuple):
+    """The insides of the closed non-convex elements, stacked (empty parts for the others), link
+    frames: hull planes, signed-distance grids and surfaces with their k-d trees."""
+
+    hull_planes: np.ndarray
+    """Hull face planes ``[n, n . x]``, (G, 4) float64; element ``e``'s are
+    ``hull_start[e]:hull_start[e + 1]``."""
+    hull_start: np.ndarray
+    """(E + 1,) int64."""
+    field: np.ndarray
+    """Grid values raveled, float64, m; element ``e``'s are ``field_start[e]:field_start[e + 1]``."""
+    field_start: np.ndarray
+    """(E + 1,) int64."""
+    field_shape: np.ndarray
+    """Each grid's shape, (E, 3) int64."""
+    field_lo: np.ndarray
+    """Each grid's first node, (E, 3) float64, m."""
+    field_h: np.ndarray
+    """Each grid's spacing, (E,) float64, m."""
+    inner_start: np.ndarray
+    """Element ``e``'s surface points (and tree positions) are ``inner_start[e]:inner_start[e +
+    1]``, (E + 1,) int64."""
+    node_start: np.ndarray
+    """Element ``e``'s tree nodes are ``node_start[e]:node_start[e + 1]``, (E + 1,) int64."""
+    inner_points: np.ndarray
+    """Surface points, (N, 3) float64, m."""
+    inner_normals: np.ndarray
+    """Their outward unit normals, (N, 3) float64."""
+    tree: KDTree
+    """The surfaces' k-d trees stacked (indices within each element's part)."""
+
+
+class _Scratch(NamedTuple):
+    """Scratch of the tangent-plane estimates of one check."""
+
+    best_d2: np.ndarray
+    """Squared distances of the nearest points, (neighbours,) float64, m^2."""
+    best: np.ndarray
+    """Their indices, (neighbours,) int64."""
+    stack: SearchScratch
+    """The tree search's stack."""
+
+
+class _Culling(NamedTuple):
+    """What :func:`_planes_and_spheres` finds, E elements."""
+
+    depth: np.ndarray
+    """Each element's depth below the obstacle planes, (E,) float64, m."""
+    where: np.ndarray
+    """The plane it lies deepest below (-1 for none), (E,) int64."""
+    clearance: float
+    """The obstacle planes' clearance, m."""
+    deep: np.ndarray
+    """Whether the element may reach inside the object, (E,) bool."""
+    apart: np.ndarray
+    """Whether the non-contact element may lie nearer the object than ``clearance_bound``, (E,)
+    bool."""
+    clearance_bound: float
+    """An upper bound of the clearance, m."""
+    box_lo: np.ndarray
+    """The low corners of the boxes of the elements' hulls, object frame, (E, 3) float64, m."""
+    box_hi: np.ndarray
+    """Their high corners, (E, 3) float64, m."""
+    estimates: int
+    """Exact estimates made."""
+
+
+class _Centres(NamedTuple):
+    """The patches of the active elements (:func:`_patch_centres`), P of them, A active elements."""
+
+    patch: np.ndarray
+    """Each patch's index, (P,) int64."""
+    pk: np.ndarray
+    """Its element's position among the active ones, (P,) int64."""
+    need: np.ndarray
+    """Whether its centre is evaluated, (P,) bool."""
+    outside_patch: np.ndarray
+    """Per active element, whether a patch was settled outside without evaluation, (A,) bool."""
+    sd: np.ndarray
+    """The signed distance estimate at each evaluated centre, (P,) float64, m."""
+    plane: np.ndarray
+    """The object point whose tangent plane sets it, (P,) int64."""
+    nearest: np.ndarray
+    """The distance to the nearest object point, (P,) float64, m."""
+    foot: np.ndarray
+    """That point's index, (P,) int64."""
+    estimates: int
+    """Exact estimates made."""
+
+
+class _Rows(NamedTuple):
+    """The rows of one check (:func:`_rows`), R rows and A active elements."""
+
+    row: np.ndarray
+    """Each row's sample, (R,) int64."""
+    rp: np.ndarray
+    """Its patch (index into :attr:`_Centres.patch`), (R,) int64."""
+    pred: np.ndarray
+    """Its predicted signed distance (exact once evaluated), (R,) float64, m."""
+    lo: np.ndarray
+    """The lower bound of its signed distance, (R,) float64, m."""
+    hi: np.ndarray
+    """The upper bound, (R,) float64, m."""
+    seg: np.ndarray
+    """Active element ``k``'s rows are ``seg[k]:seg[k + 1]``, (A + 1,) int64."""
+    last_row: np.ndarray
+    """The row of each active element's last vertex, (A,) int64."""
+
+
+@kernel(inline=True)
 def _transform(poses, e, x, y, z):
     """Point ``(x, y, z)`` of element ``e``'s frame in the object frame."""
     return (poses[e, 0, 0] * x + poses[e, 0, 1] * y + poses[e, 0, 2] * z + poses[e, 0, 3],
@@ -45,29 +261,30 @@ def _transform(poses, e, x, y, z):
             poses[e, 2, 0] * x + poses[e, 2, 1] * y + poses[e, 2, 2] * z + poses[e, 2, 3])
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@kernel(inline=True)
 def _estimate_at(x, y, z, surface, search):
-    """:func:`isf.collision.surface_distance.estimate` of the object's surface at ``(x, y, z)``."""
-    tree = surface[2]
-    return estimate(x, y, z, search[0], search[1], surface[0], surface[1], tree[0], tree[1], tree[2],
-                    tree[3], tree[4], tree[5], tree[6], tree[7], search[2], search[3], search[4])
+    """:func:`isf.collision.surface_distance.estimate` of the object's surface at ``(x, y, z)``
+    (``search``: a :class:`_Scratch`)."""
+    return estimate(x, y, z, search.best_d2, search.best, surface.points, surface.normals,
+                    surface.tree.kd, search.stack)
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@kernel
 def _planes_and_spheres(poses, obstacles, elements, surface, voxels, search):
     """The obstacle planes' depths and clearance, and which elements need their samples tested.
 
-    Returns ``(depth, where, clearance, deep, apart, clearance_bound, lo, hi, estimates)``: per
-    element its depth below the planes and the plane (-1 for none), the planes' clearance; *deep*: its
-    box overlaps the object's box (and, for a mesh object, voxels not certainly outside) and its
-    bounding sphere may reach inside; *apart*: a non-contact element that may lie nearer to the
-    object than the clearance bound (the planes' clearance and the nearest object point from
-    every non-contact element's sphere centre plus its radius); the box of its hull (E, 3).
+    Returns the :class:`_Culling`: per element its depth below the planes and the plane (-1 for
+    none), the planes' clearance; *deep*: its box overlaps the object's box (and, for a mesh
+    object, voxels not certainly outside) and its bounding sphere may reach inside; *apart*: a
+    non-contact element that may lie nearer to the object than the clearance bound (the planes'
+    clearance and the nearest object point from every non-contact element's sphere centre plus
+    its radius); the box of its hull.
     """
-    normals_p, offsets_p = obstacles
-    hull, hull_start, sphere, radius, contact = elements[0], elements[1], elements[2], elements[3], elements[4]
-    olo, ohi, cover = surface[3], surface[4], surface[5]
-    has_voxels, table, vlo, vsize = voxels[0], voxels[1], voxels[3], voxels[4]
+    normals_p, offsets_p = obstacles.normals, obstacles.offsets
+    hull, hull_start, sphere = elements.hull, elements.hull_start, elements.sphere
+    radius, contact = elements.radius, elements.contact
+    olo, ohi, cover = surface.lo, surface.hi, surface.cover
+    has_voxels, table, vlo, vsize = voxels.present, voxels.table, voxels.lo, voxels.size
     n_el = len(poses)
     depth, where = np.zeros(n_el), np.full(n_el, -1, np.int64)
     world = np.empty((len(hull), 3))
@@ -114,11 +331,11 @@ def _planes_and_spheres(poses, obstacles, elements, surface, voxels, search):
     for e in range(n_el):
         deep[e] = near[e] and lower[e] < CULL_MARGIN
         apart[e] = not contact[e] and lower[e] < clearance_bound
-    return depth, where, clearance, deep, apart, clearance_bound, elo, ehi, estimates
+    return _Culling(depth, where, clearance, deep, apart, clearance_bound, elo, ehi, estimates)
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def _patch_centres(poses, act, deep, apart, clearance_bound, elements, patches, surface, voxels, search):
+@kernel
+def _patch_centres(poses, act, culling, elements, patches, surface, voxels, search):
     """The patches of the active elements ``act`` (A,) and their centres' estimates.
 
     A patch farther from the object's box than its radius (or, for a deep element, whose ball
@@ -128,15 +345,17 @@ def _patch_centres(poses, act, deep, apart, clearance_bound, elements, patches, 
     evaluated; so are those of apart elements that may hold samples nearer than an evaluated
     centre of an apart element.
 
-    Returns ``(patch, pk, need, outside_patch, sd, plane, nearest, foot, estimates)``: per patch
-    its index, its element's position in ``act``, whether it is evaluated, and the estimate at
-    its centre (signed distance, plane point, distance to and index of the nearest object point);
-    per active element whether a patch was settled outside without evaluation.
+    Returns the :class:`_Centres`: per patch its index, its element's position in ``act``,
+    whether it is evaluated, and the estimate at its centre (signed distance, plane point,
+    distance to and index of the nearest object point); per active element whether a patch was
+    settled outside without evaluation.
     """
-    element_patches, last_patch = elements[9], elements[10]
-    samples, patch_start, patch_radius = patches[0], patches[3], patches[5]
-    olo, ohi = surface[3], surface[4]
-    has_voxels, table, voxel_gaps, vlo, vsize = voxels
+    deep, apart, clearance_bound = culling.deep, culling.apart, culling.clearance_bound
+    element_patches, last_patch = elements.element_patches, elements.last_patch
+    samples, patch_start, patch_radius = patches.samples, patches.patch_start, patches.patch_radius
+    olo, ohi = surface.lo, surface.hi
+    has_voxels, table, voxel_gaps, vlo, vsize = (voxels.present, voxels.table, voxels.gaps,
+                                                  voxels.lo, voxels.size)
     n_patch = 0
     for k in range(len(act)):
         n_patch += element_patches[act[k] + 1] - element_patches[act[k]]
@@ -186,12 +405,11 @@ def _patch_centres(poses, act, deep, apart, clearance_bound, elements, patches, 
     for i in range(n_patch):
         if not need[i] and outside[i]:
             outside_patch[pk[i]] = True
-    return patch, pk, need, outside_patch, sd, plane, nearest, foot, estimates
+    return _Centres(patch, pk, need, outside_patch, sd, plane, nearest, foot, estimates)
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def _rows(poses, tolerance, act, deep, apart, patch, pk, need, outside_patch, sd, plane, nearest,
-          elements, patches, surface):
+@kernel
+def _rows(poses, tolerance, act, culling, centres, elements, patches, surface):
     """The rows: the samples of the opened patches with their first-order predictions and
     bounds, and the centres of the others.
 
@@ -202,14 +420,18 @@ def _rows(poses, tolerance, act, deep, apart, patch, pk, need, outside_patch, sd
     patches lies outside (it may lie wholly inside); so are the two patches of apart elements
     whose centres lie nearest the object.
 
-    Returns ``(row, rp, pred, lo, hi, seg, last_row)``: per row its sample, its patch (index into
-    ``patch``), its prediction and bounds; the rows of active element ``k`` are
-    ``seg[k]:seg[k + 1]``, the row of its last vertex is ``last_row[k]``.
+    Returns the :class:`_Rows`: per row its sample, its patch (index into ``centres.patch``),
+    its prediction and bounds; the rows of active element ``k`` are ``seg[k]:seg[k + 1]``, the
+    row of its last vertex is ``last_row[k]``.
     """
-    contact, last_patch = elements[4], elements[10]
-    offsets, margin, patch_start, patch_size, patch_margin, box_lo, box_hi = (
-        patches[1], patches[2], patches[3], patches[4], patches[6], patches[7], patches[8])
-    normals = surface[1]
+    deep, apart = culling.deep, culling.apart
+    patch, pk, need, outside_patch = centres.patch, centres.pk, centres.need, centres.outside_patch
+    sd, plane, nearest = centres.sd, centres.plane, centres.nearest
+    contact, last_patch = elements.contact, elements.last_patch
+    offsets, margin, patch_start, patch_size = (patches.offsets, patches.margin, patches.patch_start,
+                                                patches.patch_size)
+    patch_margin, box_lo, box_hi = patches.patch_margin, patches.box_lo, patches.box_hi
+    normals = surface.normals
     n_act, n_patch = len(act), len(patch)
     centre_depth = np.full(n_act, -np.inf)
     outside_centre = np.zeros(n_act, np.bool_)
@@ -266,18 +488,19 @@ def _rows(poses, tolerance, act, deep, apart, patch, pk, need, outside_patch, sd
             lo[r], hi[r] = pred[r] - bound, pred[r] + bound
             r += 1
         seg[k + 1] = r
-    return row, rp, pred, lo, hi, seg, last_row
+    return _Rows(row, rp, pred, lo, hi, seg, last_row)
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@kernel(inline=True)
 def _evaluate_row(r, e, poses, row, pred, lo, hi, samples, surface, search):
     """Evaluate row ``r`` (of element ``e``) exactly."""
     s = row[r]
     x, y, z = _transform(poses, e, samples[s, 0], samples[s, 1], samples[s, 2])
-    pred[r] = lo[r] = hi[r] = _estimate_at(x, y, z, surface, search)[0]
+    sd, _, _, _ = _estimate_at(x, y, z, surface, search)
+    pred[r] = lo[r] = hi[r] = sd
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@kernel(inline=True)
 def _offer(top, n, r, pred):
     """Offer row ``r`` to ``top[:n]``, the rows with the lowest ``pred`` so far in order (ties: the
     earlier row), at most ``len(top)``; returns the new count."""
@@ -291,9 +514,8 @@ def _offer(top, n, r, pred):
     return min(n + 1, len(top))
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def _refine(poses, tolerance, plane_depth, clearance, act, deep, outside_patch, row, pred, lo, hi, seg,
-            elements, patches, surface, search):
+@kernel
+def _refine(poses, tolerance, act, culling, centres, rows, elements, patches, surface, search):
     """Evaluate exactly the rows that can change a verdict, the deepest value, whether a
     non-contact element touches, or whether an element lies wholly inside.
 
@@ -302,9 +524,12 @@ def _refine(poses, tolerance, plane_depth, clearance, act, deep, outside_patch, 
     verdict candidates of unsettled elements and the value's candidates while the deepest value
     grows. Every round takes all rows that may lie outside an element none of whose rows (nor
     settled patches) lies certainly outside. Returns the number of rows evaluated and, per
-    active element, the depth of its deepest evaluated row.
+    active element, the depth of its deepest evaluated row. Updates the bounds of ``rows``.
     """
-    contact, samples = elements[4], patches[0]
+    plane_depth, clearance, deep = culling.depth.max(), culling.clearance, culling.deep
+    outside_patch = centres.outside_patch
+    row, pred, lo, hi, seg = rows.row, rows.pred, rows.lo, rows.hi, rows.seg
+    contact, samples = elements.contact, patches.samples
     n_act = len(act)
     deepest, now = np.zeros(n_act), np.zeros(n_act)
     for k in range(n_act):
@@ -369,14 +594,16 @@ def _refine(poses, tolerance, plane_depth, clearance, act, deep, outside_patch, 
     return estimates, deepest
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@kernel
 def _object_depth(poses, e, box_lo, box_hi, tolerance, elements, probes, interiors, scratch):
     """Deepest object point inside closed element ``e`` (0 for an open one), metres, by
     :func:`isf.collision._elements.convex_depth` or :func:`isf.collision._elements.non_convex_depth`
     of the object points in the grid cells that the box ``[box_lo, box_hi]`` of its hull overlaps
     (every point inside it lies there). ``scratch``: room for all the points, (M, 3)."""
-    kind, bounds, planes, plane_start = elements[5], elements[6], elements[7], elements[8]
-    points, cell_start, grid_lo, cell, shape = probes
+    kind, bounds, planes, plane_start = (elements.kind, elements.bounds, elements.planes,
+                                         elements.plane_start)
+    points, cell_start, grid_lo, cell, shape = (probes.points, probes.cell_start, probes.lo,
+                                                probes.cell, probes.shape)
     if kind[e] == 0:
         return 0.0
     first, last = np.empty(3, np.int64), np.empty(3, np.int64)
@@ -392,27 +619,34 @@ def _object_depth(poses, e, box_lo, box_hi, tolerance, elements, probes, interio
                 n += 1
     if kind[e] == 1:
         return convex_depth(scratch[:n], poses[e], bounds[e], planes[plane_start[e]:plane_start[e + 1]])
-    hull_planes, hull_start, field, field_start, field_shape, field_lo, field_h, inner_start, node_start, \
-        inner_points, inner_normals, tree_points, order, start, stop, axis, split, left, right = interiors
-    a, b, f, n0, n1 = inner_start[e], inner_start[e + 1], field_start[e], node_start[e], node_start[e + 1]
-    values = field[f:field_start[e + 1]].reshape((field_shape[e, 0], field_shape[e, 1], field_shape[e, 2]))
-    tree = (tree_points[a:b], order[a:b], start[n0:n1], stop[n0:n1], axis[n0:n1], split[n0:n1], left[n0:n1],
-            right[n0:n1])
-    return non_convex_depth(scratch[:n], poses[e], bounds[e], tolerance,
-                            hull_planes[hull_start[e]:hull_start[e + 1]], values, field_lo[e], field_h[e],
-                            inner_points[a:b], inner_normals[a:b], tree, min(NEIGHBOURS, b - a))
+    a, b = interiors.inner_start[e], interiors.inner_start[e + 1]
+    n0, n1 = interiors.node_start[e], interiors.node_start[e + 1]
+    f0, f1 = interiors.field_start[e], interiors.field_start[e + 1]
+    shape_e = interiors.field_shape[e]
+    values = interiors.field[f0:f1].reshape((shape_e[0], shape_e[1], shape_e[2]))
+    t = interiors.tree
+    tree = KDTree(t.points[a:b], t.order[a:b], t.start[n0:n1], t.stop[n0:n1], t.axis[n0:n1],
+                  t.split[n0:n1], t.left[n0:n1], t.right[n0:n1])
+    hull_planes = interiors.hull_planes[interiors.hull_start[e]:interiors.hull_start[e + 1]]
+    return non_convex_depth(scratch[:n], poses[e], bounds[e], tolerance, hull_planes, values,
+                            interiors.field_lo[e], interiors.field_h[e], interiors.inner_points[a:b],
+                            interiors.inner_normals[a:b], tree, min(NEIGHBOURS, b - a))
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def _object_depths(poses, tolerance, act, deep, outside_patch, pred, lo, hi, seg, last_row, deepest, depth,
-                   where, clearance, box_lo, box_hi, elements, probes, interiors, obstacle):
-    """Each deep element's depth into the object: that of its deepest evaluated row or object
-    point inside it; when some row lies certainly inside and none (nor a settled patch)
-    certainly outside and no object point lies inside it, it lies wholly inside and its last
-    vertex tells. Updates ``depth`` and ``where`` (to ``obstacle``); returns the clearance, 0
-    when a non-contact element penetrates."""
-    contact = elements[4]
-    scratch = np.empty((len(probes[0]), 3))
+@kernel
+def _object_depths(poses, tolerance, act, culling, centres, rows, deepest, elements, probes,
+                   interiors, obstacle):
+    """Each deep element's depth into the object: that of its deepest evaluated row (``deepest``,
+    per active element) or object point inside it; when some row lies certainly inside and none
+    (nor a settled patch) certainly outside and no object point lies inside it, it lies wholly
+    inside and its last vertex tells. Updates ``culling.depth`` and ``culling.where`` (to
+    ``obstacle``); returns the clearance, 0 when a non-contact element penetrates."""
+    deep, depth, where, clearance = culling.deep, culling.depth, culling.where, culling.clearance
+    box_lo, box_hi = culling.box_lo, culling.box_hi
+    outside_patch = centres.outside_patch
+    pred, lo, hi, seg, last_row = rows.pred, rows.lo, rows.hi, rows.seg, rows.last_row
+    contact = elements.contact
+    scratch = np.empty((len(probes.points), 3))
     for k in range(len(act)):
         e = act[k]
         if not deep[e]:
@@ -433,12 +667,13 @@ def _object_depths(poses, tolerance, act, deep, outside_patch, pred, lo, hi, seg
     return clearance
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def _clearance_candidates(poses, act, apart, row, rp, pk, foot, samples, surface, search):
+@kernel
+def _clearance_candidates(poses, act, apart, rows, centres, samples, surface, search):
     """The :data:`CLEARANCE_CANDIDATES` rows of apart elements nearest the object point nearest
     their patch centre (ties: the earlier row): positions (C, 3), elements (C,) and distances to
     the nearest object point (C,)."""
-    points = surface[0]
+    row, rp, pk, foot = rows.row, rows.rp, centres.pk, centres.foot
+    points = surface.points
     top, far = np.empty(CLEARANCE_CANDIDATES, np.int64), np.empty(CLEARANCE_CANDIDATES)
     n = 0
     for r in range(len(row)):
@@ -457,25 +692,27 @@ def _clearance_candidates(poses, act, apart, row, rp, pk, foot, samples, surface
         top[j], far[j] = r, d
         n = min(n + 1, CLEARANCE_CANDIDATES)
     candidates, owner, nearest = np.empty((n, 3)), np.empty(n, np.int64), np.empty(n)
-    scratch = (search[2], search[3], search[4])
     for j in range(n):
         r = top[j]
         e, s = act[pk[rp[r]]], row[r]
         x, y, z = _transform(poses, e, samples[s, 0], samples[s, 1], samples[s, 2])
         candidates[j, 0], candidates[j, 1], candidates[j, 2] = x, y, z
         owner[j] = e
-        nearest[j] = np.sqrt(nearest_point(x, y, z, foot[rp[r]], points, surface[2], scratch,
-                                             np.inf)[1])
+        _, d2 = nearest_point(x, y, z, foot[rp[r]], points, surface.tree, search.stack, np.inf)
+        nearest[j] = np.sqrt(d2)
     return candidates, owner, nearest
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def reverse_clearance(measured, candidates, owner, poses, triangles, triangle_start, points, tree, probes):
+@kernel
+def reverse_clearance(measured, candidates, owner, poses, triangles, triangle_start, points, tree,
+                      probes):
     """The clearance from clearance candidates ``candidates`` (C, 3) of elements ``owner`` (C,)
     with their measured distances to the object ``measured`` (C,), m: the least of those and
     of the exact distances from the ``probes`` object points nearest the best candidate of each
     of two elements (those of the lowest indices among the candidates') to that element's
-    triangles (link frame, ``triangles[triangle_start[e]:triangle_start[e + 1]]``), >= 0."""
+    triangles (link frame, ``triangles[triangle_start[e]:triangle_start[e + 1]]``), >= 0.
+    ``points``, ``tree``: the object's points and their search
+    (:attr:`isf.search.nearest.NearestPoints.tree`)."""
     order = np.argsort(measured, kind="mergesort")
     best = measured[order[0]]
     first = np.full(len(poses), -1, np.int64)  # each element's best candidate
@@ -483,16 +720,15 @@ def reverse_clearance(measured, candidates, owner, poses, triangles, triangle_st
         if first[owner[j]] < 0:
             first[owner[j]] = j
     best_d2, nearest = np.empty(probes), np.empty(probes, np.int64)
-    stack_node, stack_bound, stack_offset = search_scratch()
+    stack = search_scratch()
     done = 0
     for e in range(len(poses)):
         j = first[e]
         if j < 0 or done == 2:
             continue
         done += 1
-        kdtree.k_nearest(candidates[j, 0], candidates[j, 1], candidates[j, 2], best_d2, nearest, tree[0],
-                         tree[1], tree[2], tree[3], tree[4], tree[5], tree[6], tree[7], stack_node,
-                         stack_bound, stack_offset)
+        kdtree.k_nearest(candidates[j, 0], candidates[j, 1], candidates[j, 2], best_d2, nearest,
+                         tree.kd, stack)
         for i in range(probes):
             o = nearest[i]
             x, y, z = points[o, 0] - poses[e, 0, 3], points[o, 1] - poses[e, 1, 3], points[o, 2] - poses[e, 2, 3]
@@ -506,38 +742,22 @@ def reverse_clearance(measured, candidates, owner, poses, triangles, triangle_st
     return max(best, 0.0)
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@kernel
 def check_elements(T, link_R, link_p, tolerance, obstacles, elements, patches, surface, probes, voxels,
                    interiors):
     """One check of the elements at palm pose ``T`` (4, 4), their links at rotations ``link_R``
-    (L, 3, 3) and positions ``link_p`` (L, 3) in the gripper frame (see :mod:`isf.collision.checker` for
-    what it computes).
+    (L, 3, 3) and positions ``link_p`` (L, 3) in the gripper frame (see :mod:`isf.collision.checker`
+    for what it computes).
 
     Args:
         tolerance: penetration tolerated, metres.
-        obstacles: ``(normals (P, 3), offsets (P,))`` of the obstacle planes.
-        elements: ``(hull, hull_start, sphere, radius, contact, kind, bounds, planes,
-            plane_start, element_patches, last_patch, frames)``: hull vertices (H, 3) of element
-            ``e`` at ``hull_start[e]:hull_start[e + 1]``; bounding sphere centres (E, 3) and radii
-            (E,); contact flags (E,); kind (E,) (0 open, 1 closed convex, 2 closed non-convex);
-            link frame boxes (E, 2, 3); convex face planes (F, 4) at
-            ``plane_start[e]:plane_start[e + 1]``; patches ``element_patches[e]:element_patches[e + 1]``;
-            the patch of the last vertex (E,); the link of each element (E,).
-        patches: ``(samples, offsets, margin, patch_start, patch_size, patch_radius,
-            patch_margin, box_lo, box_hi)``: the samples of every patch (S, 3) at
-            ``patch_start[p]:patch_start[p] + patch_size[p]``, its centre first, link frame; their
-            offsets from the centre (S, 3) and prediction bounds (S,) (0 at the centres); per patch
-            its radius, the prediction bound at that radius and the box of its offsets (P, 3).
-        surface: ``(points, normals, tree, lo, hi, cover, neighbours)``: the object's tangent
-            planes and their tree (:attr:`isf.search.nearest.NearestPoints.tree`), its box, the cover (m)
-            and the neighbour count of the estimate.
-        probes: ``(points, cell_start, lo, cell, shape)``: the object's own points (those tested
-            inside elements) in a grid of cubic cells, edge ``cell``, corner ``lo``, ``shape``
-            cells: those of cell ``(a, b, c)`` are ``points[cell_start[i]:cell_start[i + 1]]``
-            with ``i = (a * shape[1] + b) * shape[2] + c``.
-        voxels: ``(present, table, gaps, lo, size)`` of :class:`isf.collision.voxels.SurfaceVoxels`.
-        interiors: the non-convex closed elements' hull planes, grids and surfaces (with their
-            trees) stacked, each with its start per element (``isf.collision.checker._packed``).
+        obstacles: the obstacle planes (:class:`Obstacles`).
+        elements: the geometry elements (:class:`Elements`).
+        patches: their samples in patches (:class:`Patches`).
+        surface: the object's tangent planes (:class:`Surface`).
+        probes: the object's own points in a grid (:class:`Probes`).
+        voxels: :func:`isf.collision.voxels.kernel_arrays` of the object's voxels.
+        interiors: the non-convex closed elements' insides (:class:`Interiors`).
 
     Returns:
         ``(poses, depth, where, clearance, candidates, owner, nearest, estimates)``: the elements'
@@ -546,36 +766,36 @@ def check_elements(T, link_R, link_p, tolerance, obstacles, elements, patches, s
         candidates (C, 3) (none when the clearance is 0), their elements (C,) and distances to
         the nearest object point (C,); the number of exact estimates made.
     """
-    frames = elements[11]
+    frames = elements.frames
     poses = np.zeros((len(frames), 4, 4))
     for e in range(len(frames)):
         f = frames[e]
         for i in range(4):
             for j in range(3):
-                poses[e, i, j] = T[i, 0] * link_R[f, 0, j] + T[i, 1] * link_R[f, 1, j] + T[i, 2] * link_R[f, 2, j]
-            poses[e, i, 3] = T[i, 0] * link_p[f, 0] + T[i, 1] * link_p[f, 1] + T[i, 2] * link_p[f, 2] + T[i, 3]
-    stack_node, stack_bound, stack_offset = search_scratch()
-    search = (np.empty(surface[6]), np.empty(surface[6], np.int64), stack_node, stack_bound, stack_offset)
-    depth, where, clearance, deep, apart, clearance_bound, box_lo, box_hi, estimates = _planes_and_spheres(
-        poses, obstacles, elements, surface, voxels, search)
-    act = np.flatnonzero(deep | apart)
-    none = (np.empty((0, 3)), np.empty(0, np.int64), np.empty(0))
+                poses[e, i, j] = (T[i, 0] * link_R[f, 0, j] + T[i, 1] * link_R[f, 1, j]
+                                  + T[i, 2] * link_R[f, 2, j])
+            poses[e, i, 3] = (T[i, 0] * link_p[f, 0] + T[i, 1] * link_p[f, 1]
+                              + T[i, 2] * link_p[f, 2] + T[i, 3])
+    search = _Scratch(np.empty(surface.neighbours), np.empty(surface.neighbours, np.int64),
+                      search_scratch())
+    culling = _planes_and_spheres(poses, obstacles, elements, surface, voxels, search)
+    estimates = culling.estimates
+    act = np.flatnonzero(culling.deep | culling.apart)
+    no_points, no_owner, no_nearest = np.empty((0, 3)), np.empty(0, np.int64), np.empty(0)
     if len(act) == 0:
-        return poses, depth, where, clearance, none[0], none[1], none[2], estimates
-    patch, pk, need, outside_patch, sd, plane, nearest, foot, count = _patch_centres(
-        poses, act, deep, apart, clearance_bound, elements, patches, surface, voxels, search)
+        return (poses, culling.depth, culling.where, culling.clearance, no_points, no_owner,
+                no_nearest, estimates)
+    centres = _patch_centres(poses, act, culling, elements, patches, surface, voxels, search)
+    estimates += centres.estimates
+    rows = _rows(poses, tolerance, act, culling, centres, elements, patches, surface)
+    count, deepest = _refine(poses, tolerance, act, culling, centres, rows, elements, patches,
+                             surface, search)
     estimates += count
-    row, rp, pred, lo, hi, seg, last_row = _rows(
-        poses, tolerance, act, deep, apart, patch, pk, need, outside_patch, sd, plane, nearest, elements,
-        patches, surface)
-    count, deepest = _refine(poses, tolerance, depth.max(), clearance, act, deep, outside_patch, row, pred,
-                             lo, hi, seg, elements, patches, surface, search)
-    estimates += count
-    clearance = _object_depths(poses, tolerance, act, deep, outside_patch, pred, lo, hi, seg, last_row,
-                               deepest, depth, where, clearance, box_lo, box_hi, elements, probes, interiors,
-                               len(obstacles[1]))
+    clearance = _object_depths(poses, tolerance, act, culling, centres, rows, deepest, elements,
+                               probes, interiors, len(obstacles.offsets))
     if clearance == 0.0:
-        return poses, depth, where, clearance, none[0], none[1], none[2], estimates
-    candidates, owner, nearest = _clearance_candidates(poses, act, apart, row, rp, pk, foot, patches[0],
-                                                       surface, search)
-    return poses, depth, where, clearance, candidates, owner, nearest, estimates
+        return (poses, culling.depth, culling.where, clearance, no_points, no_owner, no_nearest,
+                estimates)
+    candidates, owner, nearest = _clearance_candidates(poses, act, culling.apart, rows, centres,
+                                                       patches.samples, surface, search)
+    return poses, culling.depth, culling.where, clearance, candidates, owner, nearest, estimates

@@ -8,38 +8,37 @@ inside only when it lies below every nearby tangent plane (see :mod:`isf.collisi
 from __future__ import annotations
 
 import weakref
+from typing import NamedTuple
 
 import numpy as np
 import trimesh
-from numba import njit
 
+from ..compiled.kernels import kernel
 from ..search import kdtree
 from ..search.nearest import NearestPoints, search_scratch
 
 NEIGHBOURS = 6  # tangent planes of the nearest surface points a point must lie below to be inside
 TREE_LEAF_SIZE = 32
 """The leaf size of a surface's k-d tree. The checks and the repair query points millimetres
-to centimetres from a dense surface sample, where leaves of 32 points answered a third faster
-than leaves of 8 (the same answers)."""
+to centimetres from a dense surface sample, where larger leaves than the default answer faster
+(the same answers; ``docs/benchmarks.md``)."""
 GRAPH_PAYBACK = 600
-"""Searches per point after which a deferred Delaunay graph (:class:`TangentPlanes`) is built.
-Qhull takes about 40-60 us per point of a resampled mesh's dense planes, and walking saves a
-repair search of them, counted per gripper sample of a repair step, about 0.1 us (0.07-0.12;
-``docs/benchmarks.md``, fourteenth session): after about 600 searches per point the savings
-forgone equal the graph's cost (the ski-rental rule), so a single plan does without the graph
-and a series of plans pays at most about twice the better choice in hindsight."""
+"""Searches per point after which a deferred Delaunay graph (:class:`TangentPlanes`) is built:
+the number at which the time a walk saves per search (a repair search of a resampled mesh's
+dense planes) adds up to the graph's cost per point (``docs/benchmarks.md``). Building it then
+(the ski-rental rule), a single plan does without the graph and a series of plans pays at most
+about twice the better choice in hindsight."""
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def estimate(x, y, z, best_d2, best, points, normals, tree_points, order, start, stop, axis, split, left,
-             right, stack_node, stack_bound, stack_offset):
+@kernel(inline=True)
+def estimate(x, y, z, best_d2, best, points, normals, tree, stack):
     """The signed distance estimate at ``(x, y, z)``: ``(height, plane, distance, nearest)``: the
     largest height ``(p - o_k) . n_k`` over the ``len(best)`` nearest ``points`` (the first of equal
     ones), the index of the point whose plane sets it, the distance to the nearest point and its
-    index. ``best_d2``, ``best``: scratch of the neighbour count; the tree arrays and the search
-    scratch as for :func:`isf.search.kdtree.k_nearest`."""
-    kdtree.k_nearest(x, y, z, best_d2, best, tree_points, order, start, stop, axis, split, left, right,
-                     stack_node, stack_bound, stack_offset)
+    index. ``best_d2``, ``best``: scratch of the neighbour count; the tree
+    (:class:`isf.search.kdtree.KDTree`) and the search scratch as for
+    :func:`isf.search.kdtree.k_nearest`."""
+    kdtree.k_nearest(x, y, z, best_d2, best, tree, stack)
     height, plane = -np.inf, best[0]
     for j in range(len(best)):
         o = best[j]
@@ -50,17 +49,17 @@ def estimate(x, y, z, best_d2, best, points, normals, tree_points, order, start,
     return height, plane, np.sqrt(best_d2[0]), best[0]
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@kernel
 def plane_estimates(query, points, normals, tree, k):
-    """:func:`estimate` with ``k`` neighbours of each query point (M, 3): four (M,) arrays."""
+    """:func:`estimate` with ``k`` neighbours of each query point (M, 3): four (M,) arrays.
+    ``tree``: :attr:`isf.search.nearest.NearestPoints.tree` of ``points``."""
     m = len(query)
     height, plane, distance, nearest = np.empty(m), np.empty(m, np.int64), np.empty(m), np.empty(m, np.int64)
-    stack_node, stack_bound, stack_offset = search_scratch()
+    stack = search_scratch()
     best_d2, best = np.empty(k), np.empty(k, np.int64)
     for q in range(m):
         height[q], plane[q], distance[q], nearest[q] = estimate(
-            query[q, 0], query[q, 1], query[q, 2], best_d2, best, points, normals, tree[0], tree[1], tree[2],
-            tree[3], tree[4], tree[5], tree[6], tree[7], stack_node, stack_bound, stack_offset)
+            query[q, 0], query[q, 1], query[q, 2], best_d2, best, points, normals, tree.kd, stack)
     return height, plane, distance, nearest
 
 
@@ -107,12 +106,14 @@ class TangentPlanes:
             return np.empty(0), np.empty((0, 3)), np.empty(0), np.empty((0, 3))
         k = min(NEIGHBOURS, len(self.points))
         query = np.ascontiguousarray(query, dtype=np.float64)
-        height, plane, distance, nearest = plane_estimates(query, self.points, self.normals, self.tree.tree, k)
+        height, plane, distance, nearest = plane_estimates(query, self.points, self.normals,
+                                                           self.tree.tree, k)
         return height, self.normals[plane], distance, self.points[nearest]
 
     def signed_distance(self, query: np.ndarray) -> np.ndarray:
         """Estimated signed distance of points (M, 3), metres (M,), negative inside."""
-        return self.evaluate(query)[0]
+        sd, _, _, _ = self.evaluate(query)
+        return sd
 
     def depth(self, query: np.ndarray) -> float:
         """Deepest of the points (M, 3) below the surface, metres (0 if none)."""
@@ -120,7 +121,15 @@ class TangentPlanes:
         return float(max(0.0, -sd.min())) if len(sd) else 0.0
 
 
-_MESH_MEMOS: dict[int, tuple[weakref.ref, weakref.ref, dict]] = {}
+class _MeshMemo(NamedTuple):
+    """A mesh's memo (:func:`mesh_memo`) with weak references to the arrays it is keyed on."""
+
+    faces: weakref.ref
+    vertices: weakref.ref
+    memo: dict
+
+
+_MESH_MEMOS: dict[int, _MeshMemo] = {}
 
 
 def mesh_memo(obj) -> dict:
@@ -130,10 +139,10 @@ def mesh_memo(obj) -> dict:
     (which shares them), build it once. ``obj``: an :class:`isf.ObjectSurface` with a mesh."""
     vertices, faces = obj.mesh_vertices, obj.mesh_faces
     entry = _MESH_MEMOS.get(id(faces))
-    if entry is not None and entry[0]() is faces and entry[1]() is vertices:
-        return entry[2]
+    if entry is not None and entry.faces() is faces and entry.vertices() is vertices:
+        return entry.memo
     memo: dict = {}
-    _MESH_MEMOS[id(faces)] = (weakref.ref(faces), weakref.ref(vertices), memo)
+    _MESH_MEMOS[id(faces)] = _MeshMemo(weakref.ref(faces), weakref.ref(vertices), memo)
     weakref.finalize(faces, _MESH_MEMOS.pop, id(faces), None)
     return memo
 

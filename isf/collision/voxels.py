@@ -18,16 +18,19 @@ spare on every side. A voxel that a triangle's bounding box overlaps is *blocked
 
 from __future__ import annotations
 
-import numpy as np
-from numba import njit
+from typing import NamedTuple
 
-__all__ = ["SurfaceVoxels", "kernel_arrays"]
+import numpy as np
+
+from ..compiled.kernels import kernel
+
+__all__ = ["SurfaceVoxels", "VoxelArrays", "kernel_arrays"]
 
 MIN_VOXEL = 0.001  # m
 MAX_VOXELS = 1 << 17  # the voxel grows beyond MIN_VOXEL to keep the grid this small
 
 
-@njit(cache=True, nogil=True)
+@kernel(error_model="python")
 def _blocked(vertices, faces, lo, size, shape):
     """Voxels (shape) overlapped by the bounding box of some triangle (vertices (V, 3), faces
     (F, 3)); a box touching a voxel's face counts as overlapping it."""
@@ -46,7 +49,7 @@ def _blocked(vertices, faces, lo, size, shape):
     return blocked
 
 
-@njit(cache=True, nogil=True)
+@kernel(error_model="python")
 def _not_outside(blocked):
     """Voxels that no face-adjacent path of unblocked voxels joins to the grid's border."""
     nx, ny, nz = blocked.shape
@@ -87,7 +90,7 @@ def _not_outside(blocked):
     return ~reached
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@kernel
 def _transform_line(f, out, site, bound):
     """``out[q] = min_p (q - p)^2 + f[p]`` over a line ``f`` (n,) of squared distances (``inf``
     where none): the lower envelope of parabolas (Felzenszwalb and Huttenlocher, 2012).
@@ -121,7 +124,7 @@ def _transform_line(f, out, site, bound):
         out[q] = (q - site[j]) ** 2 + f[site[j]]
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@kernel
 def _gaps(blocked):
     """Squared distance, in voxel edges squared, from every voxel's box to the nearest blocked
     voxel's box, ``min_b sum_i max(|v_i - b_i| - 1, 0)^2`` (float64, exact integers); the grid's
@@ -161,14 +164,14 @@ def _gaps(blocked):
     return gaps
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@kernel(inline=True)
 def _cell(p, lo, size, n):
     """The voxel (of ``n``) nearest coordinate ``p`` and the squared distance to the grid's span."""
     g = min(max(p, lo), lo + n * size)
     return min(max(int(np.floor((g - lo) / size)), 0), n - 1), (p - g) ** 2
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@kernel(inline=True)
 def distance_below(gaps, lo, size, x, y, z):
     """A lower bound of the distance of point ``(x, y, z)`` to the blocked voxels (``gaps`` of
     :func:`_gaps`, grid corner ``lo``, voxel edge ``size``), metres."""
@@ -178,7 +181,7 @@ def distance_below(gaps, lo, size, x, y, z):
     return np.sqrt(da + db + dc + gaps[a, b, c] * (size * size))
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@kernel
 def points_distance_below(gaps, lo, size, points):
     """:func:`distance_below` of points (M, 3), metres (M,)."""
     out = np.empty(len(points))
@@ -187,13 +190,13 @@ def points_distance_below(gaps, lo, size, points):
     return out
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@kernel(inline=True)
 def _span(a, b, lo, size, n):
     """The voxels ``[first, last)`` (of ``n``) that the interval ``[a, b]`` overlaps."""
     return max(int(np.floor((a - lo) / size)), 0), min(int(np.floor((b - lo) / size)), n - 1) + 1
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@kernel(inline=True)
 def box_clear(table, lo, size, lo_x, lo_y, lo_z, hi_x, hi_y, hi_z):
     """Does the box ``[lo_*, hi_*]`` overlap no voxel counted in the summed-volume ``table``
     (grid corner ``lo``, voxel edge ``size``)?"""
@@ -207,7 +210,7 @@ def box_clear(table, lo, size, lo_x, lo_y, lo_z, hi_x, hi_y, hi_z):
     return count == 0
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@kernel
 def boxes_clear(table, lo, size, box_lo, box_hi):
     """:func:`box_clear` of boxes (M, 3 corners), (M,) bool."""
     out = np.empty(len(box_lo), np.bool_)
@@ -255,10 +258,25 @@ class SurfaceVoxels:
                                np.ascontiguousarray(points, dtype=np.float64))
 
 
-def kernel_arrays(voxels: SurfaceVoxels | None) -> tuple:
-    """``(present, table, gaps, lo, size)`` of ``voxels`` for compiled callers (the arrays of
-    :class:`SurfaceVoxels`); for None, ``present`` is False and the arrays are placeholders of
-    the same types (so the kernels compile once)."""
+class VoxelArrays(NamedTuple):
+    """The arrays of :class:`SurfaceVoxels` for compiled callers (:func:`kernel_arrays`)."""
+
+    present: bool
+    """Whether the object has voxels (else the arrays are placeholders)."""
+    table: np.ndarray
+    """:attr:`SurfaceVoxels.table`, (A, B, C) int64."""
+    gaps: np.ndarray
+    """:attr:`SurfaceVoxels.gaps`, (A, B, C) float64, m."""
+    lo: np.ndarray
+    """:attr:`SurfaceVoxels.lo`, (3,) float64, m."""
+    size: float
+    """:attr:`SurfaceVoxels.size`, m."""
+
+
+def kernel_arrays(voxels: SurfaceVoxels | None) -> VoxelArrays:
+    """The :class:`VoxelArrays` of ``voxels``; for None, ``present`` is False and the arrays are
+    placeholders of the same types (so the kernels compile once)."""
     if voxels is None:
-        return False, np.zeros((1, 1, 1), np.int64), np.zeros((1, 1, 1)), np.zeros(3), 1.0
-    return True, voxels.table, voxels.gaps, voxels.lo, voxels.size
+        return VoxelArrays(False, np.zeros((1, 1, 1), np.int64), np.zeros((1, 1, 1)), np.zeros(3),
+                           1.0)
+    return VoxelArrays(True, voxels.table, voxels.gaps, voxels.lo, voxels.size)

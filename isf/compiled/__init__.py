@@ -1,11 +1,13 @@
-"""The numba machinery of isf: how kernels are compiled, cached and warmed up.
+"""The numba machinery of isf: how kernels are compiled and how their disk cache stays valid.
 
-- :mod:`isf.compiled.leaf`: the decorator of per-query kernels compiled without reference
-  counting and inlined into their callers.
+- :mod:`isf.compiled.kernels`: :func:`~isf.compiled.kernels.kernel`, the decorator of every
+  compiled function (cached, releasing the GIL, numpy's error model).
+- :mod:`isf.compiled.leaf`: :func:`~isf.compiled.leaf.leaf`, the decorator of per-query
+  kernels compiled without reference counting and inlined into their callers.
 - :mod:`isf.compiled.cache`: numba's disk cache kept consistent with the sources (run when
   isf is imported).
-- :mod:`isf.compiled.warming`: :func:`~isf.compiled.warming.warm_up` compiles, or loads, every
-  kernel before anything is timed.
 
 This package imports nothing of isf's own, so that every layer can use its decorators.
+Compiling every kernel ahead of time (:func:`isf.warming.warm_up`) needs the whole library and
+so lives at the top level.
 """

@@ -115,7 +115,7 @@ def cache_folder(source: Path) -> Path | None:
     try:
         from numba.core import caching
 
-        implementation = getattr(caching, "CacheImpl", None) or getattr(caching, "_CacheImpl")
+        implementation = getattr(caching, "CacheImpl", None) or caching._CacheImpl
         for locator_class in implementation._locator_classes:
             locator = locator_class.from_function(_placeholder, str(source))
             if locator is not None:

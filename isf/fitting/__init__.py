@@ -6,7 +6,7 @@ IPFO on per-link moments (:mod:`isf.fitting.moment_kernels`, ``_ipfo_kernel``) w
 step's bounded QP (``_finger_step``, ``_box_qp``) and the stop rule.
 """
 
-from .fit import fit, fit_many
 from .engine import LockstepFitter
+from .fit import fit, fit_many
 
 __all__ = ["LockstepFitter", "fit", "fit_many"]

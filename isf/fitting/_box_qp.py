@@ -26,8 +26,8 @@ uncertified another way (OSQP, in :func:`isf.fitting._finger_step.finger_steps`)
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from ..compiled.kernels import kernel
 from ..compiled.leaf import leaf
 from .moment_kernels import solve_small
 
@@ -65,7 +65,7 @@ def solve_box_qps(H: np.ndarray, c: np.ndarray, lower: np.ndarray, upper: np.nda
     return _solve_box_qps(*as_float, int(max_rounds), KKT_TOLERANCE)
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@kernel
 def _solve_box_qps(H, c, lower, upper, max_rounds, tolerance):
     """:func:`solve_box_qps`, compiled: each problem on its own."""
     n_problems, n = c.shape
@@ -82,7 +82,7 @@ def _solve_box_qps(H, c, lower, upper, max_rounds, tolerance):
     return x, certified
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@kernel(inline=True)
 def _face_minimiser(H, c, lower, upper, low, high, M, rhs, guess):
     """The minimiser ``guess`` (n,) over the face where the coordinates ``low`` / ``high`` are
     held at their lower / upper bound: their rows become ``x_i = bound_i``, the free rows
@@ -96,7 +96,7 @@ def _face_minimiser(H, c, lower, upper, low, high, M, rhs, guess):
     solve_small(M, rhs, guess)
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@kernel(inline=True)
 def _gradient(H, c, x, tolerance, r, scale):
     """The gradient ``r = H x - c`` (n,) and the KKT test's slack ``scale`` (n,) on it."""
     n = len(c)

@@ -26,10 +26,9 @@ import numpy as np
 import osqp
 import scipy.sparse as sp
 
-from numba import njit
-
-from . import _box_qp as box_qp
+from ..compiled.kernels import kernel
 from ..exceptions import QPStepError
+from . import _box_qp as box_qp
 
 __all__ = ["FingerStepQP", "bounded_steps", "finger_steps", "solve_uncertified"]
 
@@ -64,7 +63,7 @@ class FingerStepQP:
             # have the same length, and csc_matrix(dense) would drop exact zeros.
             P = sp.csc_matrix((np.ones(len(self._rows)), self._rows, indptr), shape=(n, n))
             # the builtin algebra, named: the default probes for the CUDA and MKL backends
-            # by failing imports on every construction (about 0.26 ms), and would take
+            # by failing imports on every construction, and would take
             # whichever is installed, so the steps would depend on the machine
             self._solver = osqp.OSQP(algebra="builtin")
             self._solver.setup(
@@ -166,7 +165,7 @@ def solve_uncertified(dq: np.ndarray, exact: np.ndarray, AtA: np.ndarray, Atb: n
     return failed
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@kernel
 def bounded_steps(AtA, Atb, lower, upper, damping, max_rounds, kkt_tolerance):
     """The finger steps of B fits without OSQP: ``dq`` (B, n) and which are exact (B,) (the
     one-joint closed form always is; the active set where it is certified).

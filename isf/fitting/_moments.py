@@ -26,8 +26,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import moment_kernels as kernels
 from ..gripper.model import LinkKinematics
+from . import moment_kernels as kernels
 
 __all__ = ["PairMoments"]
 
@@ -72,20 +72,24 @@ class PairMoments:
         """Normal equations of each fit's palm step about its contact centroid.
 
         Returns:
-            ``H`` (B, 6, 6), ``g`` (B, 6) for the twist ``[r, u]`` and the centroids (B, 3), object frame.
+            ``H`` (B, 6, 6), ``g`` (B, 6) for the twist ``[r, u]`` and the centroids (B, 3),
+            object frame.
         """
-        return kernels.palm_systems(T, links.rotations, links.positions, self.origin, self.fit_count,
-                                    self.M, self.N, self.v, self.w, self.s, self.count, normal_weight**2)
+        return kernels.palm_systems(T, links.rotations, links.positions, self.origin,
+                                    self.fit_count, self.M, self.N, self.v, self.w, self.s,
+                                    self.count, normal_weight**2)
 
     def palm_update(self, T: np.ndarray, links: LinkKinematics, normal_weight: float,
                     max_rotation: float) -> np.ndarray:
         """Each fit's palm step applied: the poses after it, (B, 4, 4) (see
         :func:`isf.fitting._palm_step.palm_motions` for the step)."""
-        return kernels.palm_updates(T, links.rotations, links.positions, self.origin, self.fit_count,
-                                    self.M, self.N, self.v, self.w, self.s, self.count, normal_weight**2,
-                                    max_rotation)
+        return kernels.palm_updates(T, links.rotations, links.positions, self.origin,
+                                    self.fit_count, self.M, self.N, self.v, self.w, self.s,
+                                    self.count, normal_weight**2, max_rotation)
 
     def finger_system(self, T: np.ndarray, links: LinkKinematics, normal_weight: float):
-        """Normal equations of each fit's finger least squares: ``A^T A`` (B, n, n), ``A^T b`` (B, n)."""
-        return kernels.finger_systems(T, links.rotations, links.positions, links.J_linear, links.J_angular,
-                                      self.origin, self.M, self.N, self.v, self.w, self.count, normal_weight)
+        """Normal equations of each fit's finger least squares: ``A^T A`` (B, n, n), ``A^T b``
+        (B, n)."""
+        return kernels.finger_systems(T, links.rotations, links.positions, links.J_linear,
+                                      links.J_angular, self.origin, self.M, self.N, self.v, self.w,
+                                      self.count, normal_weight)

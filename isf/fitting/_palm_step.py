@@ -1,7 +1,7 @@
-"""The IPFO palm step: closed-form least squares for the palm motion (paper eq. 5, 8, 10).
-
-:func:`palm_steps` solves the step of many fits at once (one 6x6 system per fit, the
-pairs of all fits concatenated); :func:`palm_step` is the single-fit form.
+"""The IPFO palm step of many fits pair by pair: the reference's normal equations (paper eq. 5, 8,
+10; :func:`isf.fitting.reference.palm_system`) solved by the engine's compiled palm motion
+(:func:`isf.fitting.moment_kernels.palm_motion`). Tests compare the engine's moment form
+(:class:`isf.fitting._moments.PairMoments`) with it.
 """
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import moment_kernels as kernels
-from ..se3 import cross
+from .reference import palm_system
 from .segments import Segments
 
 __all__ = ["palm_motions", "palm_step", "palm_steps"]
@@ -25,16 +25,9 @@ def palm_steps(
     normal_weight: float,
     max_rotation: float,
 ) -> np.ndarray:
-    """Palm motions that best fit matched contact points onto the object, one per fit.
-
-    Solves :math:`x = (\\tilde A^T \\tilde A)^{-1} \\tilde A^T \\tilde b` (eq. 10) with
-    point-to-plane rows :math:`a_i = [(p_i \\times n^q_i)^T, (n^q_i)^T]`,
-    :math:`b_i = (q_i - p_i)^T n^q_i` (eq. 5) and normal-alignment rows
-    :math:`[\\alpha (n^p_i \\times n^q_i)^T, 0]`, :math:`-\\alpha (n^p_i)^T n^q_i - \\alpha`
-    (from eq. 8), linearised as :math:`R \\approx I + \\hat r`. Points are taken
-    relative to their fit's centroid, which leaves the minimiser unchanged and keeps the
-    normal equations well conditioned. A rotation larger than ``max_rotation`` is
-    scaled down (with its translation) to that angle.
+    """Palm motions that best fit matched contact points onto the object, one per fit: eq. 10
+    over the rows of :func:`isf.fitting.reference.palm_system` (about each fit's contact
+    centroid), solved by :func:`palm_motions`.
 
     Args:
         points: contact points ``p_i``, object frame, shape (K, 3), metres.
@@ -48,21 +41,14 @@ def palm_steps(
     Returns:
         ``T_delta``, shape (B, 4, 4): the motions to apply on the left of each ``T_object_gripper``.
     """
-    centre = segments.mean(points)
-    offsets = points - centre[segments.ids]
-    a = np.concatenate([cross(offsets, target_normals), target_normals], axis=1)
-    b = np.einsum("ij,ij->i", targets - points, target_normals)
-    H = segments.sum(a[:, :, None] * a[:, None, :])
-    g = segments.sum(a * b[:, None])
-    if normal_weight > 0.0:
-        an = normal_weight * cross(normals, target_normals)
-        bn = -normal_weight * (np.einsum("ij,ij->i", normals, target_normals) + 1.0)
-        H[:, :3, :3] += segments.sum(an[:, :, None] * an[:, None, :])
-        g[:, :3] += segments.sum(an * bn[:, None])
+    systems = [palm_system(points[rows], normals[rows], targets[rows], target_normals[rows],
+                           normal_weight) for rows in segments.slices()]
+    H, g, centre = (np.stack(parts) for parts in zip(*systems))
     return palm_motions(H, g, centre, max_rotation)
 
 
-def palm_motions(H: np.ndarray, g: np.ndarray, centre: np.ndarray, max_rotation: float) -> np.ndarray:
+def palm_motions(H: np.ndarray, g: np.ndarray, centre: np.ndarray,
+                 max_rotation: float) -> np.ndarray:
     """Solve the palm normal equations ``H x = g`` (B, 6, 6), (B, 6) for the twists
     ``x = [r, u]`` about the centroids ``centre`` (B, 3); returns ``T_delta`` (B, 4, 4).
 

@@ -9,8 +9,8 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
+from ..compiled.kernels import kernel
 from ..object.surface import ObjectSurface
 from .segments import Segments
 
@@ -82,7 +82,7 @@ def match_many(
     return Correspondences(source, target[source], dist[source])
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@kernel
 def filter_pairs(dist, target, group_starts, fit_starts, outlier_factor, outlier_floor, compatible,
                   reject_duplicates):
     """The pairs :func:`match_many` keeps, a mask (M,): within the outlier threshold of their
@@ -104,7 +104,7 @@ def filter_pairs(dist, target, group_starts, fit_starts, outlier_factor, outlier
     return keep
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@kernel
 def keep_inliers(dist, a, b, outlier_factor, outlier_floor, compatible, keep, ranked):
     """``keep[a:b]``: the rows of one outlier group within ``max(outlier_factor * median,
     outlier_floor)`` of their match that are ``compatible``. ``ranked``: scratch of >= b - a."""
@@ -113,7 +113,7 @@ def keep_inliers(dist, a, b, outlier_factor, outlier_floor, compatible, keep, ra
         keep[i] = dist[i] <= threshold and compatible[i]
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@kernel
 def outlier_threshold(dist, a, b, outlier_factor, outlier_floor, ranked):
     """``max(outlier_factor * median(dist[a:b]), outlier_floor)``, as numpy's median gives it
     (the mean of the two middle values for an even count); ``outlier_floor`` for no rows.
@@ -139,7 +139,7 @@ def outlier_threshold(dist, a, b, outlier_factor, outlier_floor, ranked):
     return max(outlier_factor * (0.5 * (lower + upper)), outlier_floor)
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@kernel
 def select(values, n, k):
     """The ``k``-th smallest of ``values[:n]`` (0-based, finite values), by quickselect with a
     three-way partition (linear time on average, also with many equal values). Reorders
@@ -169,7 +169,7 @@ def select(values, n, k):
     return values[k]
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@kernel
 def reject_duplicate_targets(dist, target, a, b, keep, best_row, stamp, tag):
     """Among the kept rows ``a .. b - 1`` of one fit that share a target, keep only the nearest
     (the first of equally near ones). ``best_row``, ``stamp``: scratch with one entry per object

@@ -27,16 +27,16 @@ from collections.abc import Hashable, Sequence
 
 import numpy as np
 
-from . import engine_kernel as kernel
 from ..config import FitConfig
-from ..exceptions import InvalidInputError
-from ._finger_step import FingerStepQP
+from ..exceptions import InvalidInputError, JointLimitError, JointLimitViolation
 from ..gripper.model import Gripper
-from ._ipfo import answer_requests, ipfo_parameters
 from ..object.surface import ObjectSurface
 from ..result import FitResult, FitStatus, History, IterationRecord
+from . import engine_kernel as kernel
+from ._finger_step import FingerStepQP
+from ._ipfo import answer_requests, ipfo_parameters
 
-__all__ = ["LockstepFitter", "score_fit"]
+__all__ = ["LockstepFitter", "fit_parameters", "gripper_arrays", "score_fit"]
 
 _STATUS = {kernel.CONVERGED: FitStatus.CONVERGED, kernel.MAX_ITERATIONS: FitStatus.MAX_ITERATIONS,
            kernel.LOST_CONTACT: FitStatus.LOST_CONTACT}
@@ -59,7 +59,7 @@ class LockstepFitter:
         self.obj = obj
         self.config = FitConfig() if config is None else config
         self._grip = gripper_arrays(gripper, self.config.levels)
-        self._obj = (obj.points, obj.normals, obj.search.tree)
+        self._obj = kernel.ObjectArrays(obj.points, obj.normals, obj.search.tree)
         self._fit_params = fit_parameters(self.config)
         self._ipfo_params = ipfo_parameters(gripper, self.config)
         self._history_length = sum(max(1, self.config.max_iterations // 2**level)
@@ -72,7 +72,7 @@ class LockstepFitter:
     @property
     def n_active(self) -> int:
         """Fits still running."""
-        return int(np.count_nonzero(self._slots[6] == kernel.RUNNING))
+        return int(np.count_nonzero(self._slots.status == kernel.RUNNING))
 
     def add(self, key: Hashable, T_object_gripper: np.ndarray, q: np.ndarray | None = None) -> None:
         """Start a fit from palm pose ``T_object_gripper`` (4, 4) and joints ``q`` (n_joints,;
@@ -83,16 +83,17 @@ class LockstepFitter:
                 or lies outside the joint limits.
         """
         T, q = _check_pose(T_object_gripper), _check_joints(self.gripper, q)
-        free = np.flatnonzero(self._slots[6] == kernel.EMPTY)
+        free = np.flatnonzero(self._slots.status == kernel.EMPTY)
         b = int(free[0]) if len(free) else self._grow()
         slots = self._slots
-        slots[0][b], slots[1][b] = T, q
-        for array, value in zip(slots[2:6], self.gripper.link_kinematics_many(q[None])):
-            array[b] = value[0]
-        slots[6][b] = kernel.RUNNING
-        slots[14][b] = -1  # no nearest object points yet
-        self._history[-1][b] = 0
-        kernel.enter_level(b, self.config.levels - 1, slots, self._grip, self._fit_params)
+        slots.T[b], slots.q[b] = T, q
+        links = self.gripper.link_kinematics_many(q[None])
+        slots.R[b], slots.p[b] = links.rotations[0], links.positions[0]
+        slots.Jv[b], slots.Jw[b] = links.J_linear[0], links.J_angular[0]
+        slots.status[b] = kernel.RUNNING
+        slots.last[b] = -1  # no nearest object points yet
+        self._history.count[b] = 0
+        kernel.enter_level(b, self.config.levels - 1, slots, self._grip)
         self._keys[b], self._started[b] = key, time.perf_counter()
         if self._qps[b] is not None:
             self._qps[b].reset()
@@ -110,19 +111,21 @@ class LockstepFitter:
     def _run(self, max_rounds: int | None) -> list[tuple[Hashable, FitResult]]:
         left = np.iinfo(np.int64).max if max_rounds is None else max_rounds
         slots, history, grip, fit_params = self._slots, self._history, self._grip, self._fit_params
-        args = (slots, history, grip, self._obj, fit_params, self._ipfo_params)
         while left > 0:
-            reason, rounds, pairs, state, moments, reply = kernel.run(*args, left)
-            if reason != kernel.PENDING:
+            outcome = kernel.run(slots, history, grip, self._obj, fit_params, self._ipfo_params,
+                                 left)
+            if outcome.reason != kernel.PENDING:
                 break
             # IPFO of this round needs Python: finish it, then the round
-            qps = [self._qp(b) for b in pairs[0].tolist()] if self.gripper.n_joints else None
-            answer_requests(self.gripper, qps, state, moments, self._ipfo_params, reply)
-            kernel.finish_round(slots, history, grip, fit_params, pairs, state)
-            left -= rounds + 1
-            if np.any(slots[6] > kernel.RUNNING):
+            fits = outcome.pairs.fits.tolist()
+            qps = [self._qp(b) for b in fits] if self.gripper.n_joints else None
+            answer_requests(self.gripper, qps, outcome.state, outcome.moments, self._ipfo_params,
+                            outcome.request)
+            kernel.finish_round(slots, history, grip, fit_params, outcome.pairs, outcome.state)
+            left -= outcome.rounds + 1
+            if np.any(slots.status > kernel.RUNNING):
                 break
-        ended = np.flatnonzero(slots[6] > kernel.RUNNING).tolist()
+        ended = np.flatnonzero(slots.status > kernel.RUNNING).tolist()
         return [(self._keys[b], self._result(b)) for b in ended]
 
     def _qp(self, b: int) -> FingerStepQP:
@@ -133,32 +136,39 @@ class LockstepFitter:
 
     def _result(self, b: int) -> FitResult:
         """The finished fit of slot ``b`` scored on its final state; the slot is freed."""
-        T, q, R, p, status = (a[b] for a in self._slots[:4] + (self._slots[6],))
-        last = self._slots[14][b]
-        self._slots[6][b] = kernel.EMPTY
+        slots = self._slots
+        T, q, R, p, last = slots.T[b], slots.q[b], slots.R[b], slots.p[b], slots.last[b]
+        status = _STATUS[int(slots.status[b])]
+        slots.status[b] = kernel.EMPTY
         elapsed = time.perf_counter() - self._started[b]
         return _scored(self.gripper, self.obj, self.config, self._grip, T.copy(), q.copy(), R, p,
-                       last, _STATUS[int(status)], self._records(b), elapsed)
+                       last, status, self._records(b), elapsed)
 
     def _records(self, b: int) -> History:
-        count = int(self._history[-1][b])
-        return History(*(a[b, :count].copy() for a in self._history[:8]))
+        h = self._history
+        count = int(h.count[b])
+        return History(*(a[b, :count].copy() for a in (
+            h.level, h.iteration, h.mean_distance, h.error, h.n_pairs, h.q, h.ipfo_errors,
+            h.n_ipfo)))
 
-    def _allocate(self, n_slots: int) -> tuple[tuple, tuple]:
-        """Empty slot and history arrays for ``n_slots`` fits (see
-        :func:`isf.fitting.engine_kernel.run`)."""
+    def _allocate(self, n_slots: int) -> tuple[kernel.Slots, kernel.HistoryArrays]:
+        """Empty slot and history arrays for ``n_slots`` fits."""
         g, S = self.gripper, n_slots
         n, L, P = g.n_joints, len(g.contact_links), g.n_points
         H, n_ipfo = self._history_length, self.config.max_ipfo_iterations
-        slots = (np.zeros((S, 4, 4)), np.zeros((S, n)), np.zeros((S, L, 3, 3)), np.zeros((S, L, 3)),
-                 np.zeros((S, L, 3, n)), np.zeros((S, L, 3, n)), np.full(S, kernel.EMPTY, np.int64),
-                 np.zeros(S, np.int64), np.zeros(S, np.int64), np.zeros(S), np.zeros(S),
-                 np.zeros((S, P, 3)), np.zeros((S, P, 3)), np.zeros((S, P, 3)),
-                 np.full((S, P), -1, np.int64))
-        history = (np.zeros((S, H), np.int64), np.zeros((S, H), np.int64), np.zeros((S, H)),
-                   np.zeros((S, H)),
-                   np.zeros((S, H), np.int64), np.zeros((S, H, n)), np.zeros((S, H, n_ipfo)),
-                   np.zeros((S, H), np.int64), np.zeros(S, np.int64))
+        slots = kernel.Slots(
+            T=np.zeros((S, 4, 4)), q=np.zeros((S, n)), R=np.zeros((S, L, 3, 3)),
+            p=np.zeros((S, L, 3)), Jv=np.zeros((S, L, 3, n)), Jw=np.zeros((S, L, 3, n)),
+            status=np.full(S, kernel.EMPTY, np.int64), level=np.zeros(S, np.int64),
+            iteration=np.zeros(S, np.int64), displacement=np.zeros(S), eta=np.zeros(S),
+            current=np.zeros((S, P, 3)), current_normals=np.zeros((S, P, 3)),
+            start=np.zeros((S, P, 3)), last=np.full((S, P), -1, np.int64))
+        history = kernel.HistoryArrays(
+            level=np.zeros((S, H), np.int64), iteration=np.zeros((S, H), np.int64),
+            mean_distance=np.zeros((S, H)), error=np.zeros((S, H)),
+            n_pairs=np.zeros((S, H), np.int64), q=np.zeros((S, H, n)),
+            ipfo_errors=np.zeros((S, H, n_ipfo)), n_ipfo=np.zeros((S, H), np.int64),
+            count=np.zeros(S, np.int64))
         return slots, history
 
     def _grow(self) -> int:
@@ -168,35 +178,40 @@ class LockstepFitter:
         for new, current in zip(slots + history, self._slots + self._history):
             new[:old] = current
         self._slots, self._history = slots, history
-        extra = len(slots[0]) - old
+        extra = len(slots.status) - old
         self._keys += [None] * extra
         self._started += [0.0] * extra
         self._qps += [None] * extra
         return old
 
 
-def gripper_arrays(gripper: Gripper, levels: int) -> tuple:
-    """The gripper's contact points for :func:`isf.fitting.engine_kernel.run`: link-frame points and
-    normals (P, 3), link and surface of each (P,), the points of each pyramid level (levels, P)
-    (padded) and their counts (levels,)."""
+def gripper_arrays(gripper: Gripper, levels: int) -> kernel.GripperArrays:
+    """The gripper's contact points for :func:`isf.fitting.engine_kernel.run`, with ``levels``
+    pyramid levels."""
     P = gripper.n_points
     level_rows = np.zeros((levels, P), np.int64)
     level_count = np.zeros(levels, np.int64)
     for level in range(levels):
         rows = np.flatnonzero(gripper.level_mask(level))
         level_rows[level, :len(rows)], level_count[level] = rows, len(rows)
-    return (gripper.points_link, gripper.normals_link, gripper.point_link.astype(np.int64),
-            gripper.point_surface.astype(np.int64), level_rows, level_count)
+    return kernel.GripperArrays(
+        points_link=gripper.points_link, normals_link=gripper.normals_link,
+        point_link=gripper.point_link.astype(np.int64),
+        point_surface=gripper.point_surface.astype(np.int64), level_rows=level_rows,
+        level_count=level_count)
 
 
-def fit_parameters(config: FitConfig) -> tuple:
+def fit_parameters(config: FitConfig) -> kernel.FitParameters:
     """The parameters of :func:`isf.fitting.engine_kernel.run` read from ``config``."""
-    check_normals = config.max_normal_angle < np.pi
-    return (int(config.levels), int(config.max_iterations), float(config.tolerance),
-            float(config.outlier_factor), float(config.outlier_floor),
-            config.outlier_scope == "surface", bool(config.reject_duplicates), bool(check_normals),
-            float(-np.cos(config.max_normal_angle)),
-            int(config.min_pairs), float(config.contact_distance))
+    return kernel.FitParameters(
+        levels=int(config.levels), max_iterations=int(config.max_iterations),
+        tolerance=float(config.tolerance), outlier_factor=float(config.outlier_factor),
+        outlier_floor=float(config.outlier_floor),
+        per_surface=config.outlier_scope == "surface",
+        reject_duplicates=bool(config.reject_duplicates),
+        check_normals=bool(config.max_normal_angle < np.pi),
+        cos_limit=float(-np.cos(config.max_normal_angle)), min_pairs=int(config.min_pairs),
+        contact_distance=float(config.contact_distance))
 
 
 def score_fit(gripper: Gripper, obj: ObjectSurface, T: np.ndarray, q: np.ndarray, config: FitConfig,
@@ -209,21 +224,22 @@ def score_fit(gripper: Gripper, obj: ObjectSurface, T: np.ndarray, q: np.ndarray
                    links.positions, last, status, history, elapsed)
 
 
-def _scored(gripper: Gripper, obj: ObjectSurface, config: FitConfig, grip: tuple, T: np.ndarray,
-            q: np.ndarray, R: np.ndarray, p: np.ndarray, last: np.ndarray, status: FitStatus,
-            history: Sequence[IterationRecord], elapsed: float) -> FitResult:
+def _scored(gripper: Gripper, obj: ObjectSurface, config: FitConfig, grip: kernel.GripperArrays,
+            T: np.ndarray, q: np.ndarray, R: np.ndarray, p: np.ndarray, last: np.ndarray,
+            status: FitStatus, history: Sequence[IterationRecord], elapsed: float) -> FitResult:
     """:func:`isf.fitting.engine_kernel.score_state` of a state as a :class:`FitResult` (``grip``:
     :func:`gripper_arrays`; ``last``: each contact point's last nearest object point, (P,),
     -1 for none)."""
-    mean_distance, misalignment, error, rows, targets, points, touching = kernel.score_state(
-        T, R, p, grip, (obj.points, obj.normals, obj.search.tree), fit_parameters(config),
-        float(config.normal_weight), last)
-    surface_contact = {s.name: float(touching[gripper.point_surface == k].mean())
+    score = kernel.score_state(
+        T, R, p, grip, kernel.ObjectArrays(obj.points, obj.normals, obj.search.tree),
+        fit_parameters(config), float(config.normal_weight), last)
+    surface_contact = {s.name: float(score.touching[gripper.point_surface == k].mean())
                        for k, s in enumerate(gripper.surfaces)}
     return FitResult(
-        T_object_gripper=T, q=q, joints=gripper.joints(q), mean_distance=float(mean_distance),
-        normal_misalignment=float(misalignment), error=float(error), n_pairs=len(rows),
-        contact_points=points[rows], object_points=obj.points[targets],
+        T_object_gripper=T, q=q, joints=gripper.joints(q), mean_distance=float(score.mean_distance),
+        normal_misalignment=float(score.misalignment), error=float(score.error),
+        n_pairs=len(score.rows), contact_points=score.points[score.rows],
+        object_points=obj.points[score.targets],
         surface_contact=surface_contact,
         iterations=len(history), status=status, history=history, time=elapsed,
     )
@@ -238,7 +254,7 @@ def _check_pose(T: np.ndarray) -> np.ndarray:
         )
     R = T[:3, :3]
     identity = np.eye(3)
-    # np.allclose's tests (|a - b| <= atol + 1e-5 |b|) written out: allclose costs ~50 us a call
+    # np.allclose's tests (|a - b| <= atol + 1e-5 |b|) written out, without allclose's overhead
     orthonormal = np.all(np.abs(R.T @ R - identity) <= 1e-6 + 1e-5 * identity)
     last = np.array([0.0, 0.0, 0.0, 1.0])
     homogeneous = np.abs(T[3] - last) <= 1e-8 + 1e-5 * last
@@ -267,10 +283,10 @@ def _check_joints(gripper: Gripper, q: np.ndarray | None) -> np.ndarray:
             "gripper's initial joints"
         )
     outside = [
-        f"{name}={value:g} not in [{lo:g}, {hi:g}]"
+        JointLimitViolation(name, float(value), float(lo), float(hi))
         for name, value, lo, hi in zip(gripper.joint_names, q, gripper.lower, gripper.upper)
         if not lo - 1e-12 <= value <= hi + 1e-12
     ]
     if outside:
-        raise InvalidInputError(f"initial joints outside their limits: {', '.join(outside)}")
+        raise JointLimitError(outside, "initial joints")
     return gripper.clip(q)

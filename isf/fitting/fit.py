@@ -1,8 +1,12 @@
 """Iterative surface fitting (paper Algorithm 2): :func:`fit` and :func:`fit_many`.
 
-Both run the lockstep engine (:class:`isf.fitting.engine.LockstepFitter`, where the stop rule
-is documented); :func:`fit` is one fit alone, :func:`fit_many` advances many together
-(the same results as one :func:`fit` each, in a fraction of the time).
+Both run the compiled lockstep engine (:class:`isf.fitting.engine.LockstepFitter`, where the
+stop rule is documented); :func:`fit` is one fit alone, :func:`fit_many` advances many together
+(the same results as one :func:`fit` each, in a fraction of the time). The paper's loops are
+readable in the plain-Python reference the engine is tested against, whole fit by whole fit
+(``tests/test_reference.py``): :func:`isf.fitting.reference.fit` (Algorithm 2) and
+:func:`isf.fitting.reference.ipfo` (Algorithm 1); the planner's loop around ISF is
+:func:`isf.planning.planner.plan` (Algorithm 3).
 """
 
 from __future__ import annotations
@@ -12,9 +16,9 @@ import numpy as np
 from ..config import FitConfig
 from ..exceptions import InvalidInputError
 from ..gripper.model import Gripper
-from .engine import LockstepFitter
 from ..object.surface import ObjectSurface
 from ..result import FitResult
+from .engine import LockstepFitter
 
 __all__ = ["fit", "fit_many"]
 
@@ -80,7 +84,8 @@ def fit_many(
         if joints.size == len(poses) * gripper.n_joints:
             joints = joints.reshape(len(poses), -1)
         if len(joints) != len(poses):
-            raise InvalidInputError(f"got {len(poses)} poses but {len(joints)} joint vectors: pass one per pose")
+            raise InvalidInputError(
+                f"got {len(poses)} poses but {len(joints)} joint vectors: pass one per pose")
     fitter = LockstepFitter(gripper, obj, config)
     for index, (T, qb) in enumerate(zip(poses, joints)):
         fitter.add(index, T, qb)  # checks the pose and the joints

@@ -1,25 +1,67 @@
 """Compiled arithmetic of the moment form of IPFO (see :mod:`isf.fitting._moments` for the maths).
 
 Each kernel loops over link groups (one contact link of one fit; group ``g = b * L + l``)
-with small fixed-size sums. The numpy form of the same sums took about 40 array calls per
-IPFO alternation, and their call overhead, not their arithmetic, dominated a fit; here an
-alternation is three calls. Groups without pairs (``count[g] == 0``) have zero moments and
-are skipped. Every kernel is float64 throughout and is compiled once (numba, cached on
-disk), whatever the gripper.
+with small fixed-size sums, so that an IPFO alternation is three calls (in numpy the same sums
+are about 40 array calls, whose call overhead, not their arithmetic, would dominate a fit).
+Groups without pairs (``count[g] == 0``) have zero moments and are skipped. Every kernel is
+float64 throughout and is compiled once (numba, cached on disk), whatever the gripper.
 """
 
 from __future__ import annotations
 
-import numpy as np
-from numba import njit
+from typing import NamedTuple
 
+import numpy as np
+
+from ..compiled.kernels import kernel
 from ..compiled.leaf import leaf
 
-__all__ = ["fit_errors", "finger_systems", "group_moments", "link_poses", "palm_motion", "palm_motions",
-           "palm_systems", "palm_updates", "place", "points_in_object", "solve_small"]
+__all__ = ["GroupMoments", "fit_errors", "finger_systems", "group_moments", "link_poses",
+           "palm_motion", "palm_motions", "palm_systems", "palm_updates", "place",
+           "points_in_object", "solve_small"]
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+class GroupMoments(NamedTuple):
+    """The moments of B fits' pairs per link group (:func:`group_moments`; G = B * L groups),
+    float64, taken about each fit's ``origin``.
+
+    Attributes:
+        origin: each fit's target centroid, object frame, (B, 3), m.
+        fit_count: each fit's pairs, (B,).
+        M: sums of ``y y^T``, (G, 12, 12).
+        N: sums of ``u u^T``, (G, 9, 9).
+        v: sums of ``beta y``, (G, 12), m.
+        beta2: sums of ``beta^2``, (G,), m^2.
+        w: sums of ``u``, (G, 9).
+        s: sums of ``[x, 1]``, (G, 4), m.
+        count: each group's pairs, (G,).
+    """
+
+    origin: np.ndarray
+    fit_count: np.ndarray
+    M: np.ndarray
+    N: np.ndarray
+    v: np.ndarray
+    beta2: np.ndarray
+    w: np.ndarray
+    s: np.ndarray
+    count: np.ndarray
+
+
+class _PalmMoments(NamedTuple):
+    """The fields of :class:`GroupMoments` that the palm step reads."""
+
+    origin: np.ndarray
+    fit_count: np.ndarray
+    M: np.ndarray
+    N: np.ndarray
+    v: np.ndarray
+    w: np.ndarray
+    s: np.ndarray
+    count: np.ndarray
+
+
+@kernel(inline=True)
 def _add_outer(A, r, c, a0, a1, a2, b0, b1, b2):
     """``A[r:r+3, c:c+3] += a b^T`` for 3-vectors ``a``, ``b`` given as scalars."""
     A[r, c] += a0 * b0
@@ -33,7 +75,7 @@ def _add_outer(A, r, c, a0, a1, a2, b0, b1, b2):
     A[r + 2, c + 2] += a2 * b2
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@kernel(inline=True)
 def _add_self_outer(A, r, a0, a1, a2):
     """The upper triangle of ``A[r:r+3, r:r+3] += a a^T``."""
     A[r, r] += a0 * a0
@@ -44,7 +86,7 @@ def _add_self_outer(A, r, a0, a1, a2):
     A[r + 2, r + 2] += a2 * a2
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@kernel(inline=True)
 def _add_scaled(a, r, scale, b0, b1, b2):
     """``a[r:r+3] += scale * b``."""
     a[r] += scale * b0
@@ -52,7 +94,7 @@ def _add_scaled(a, r, scale, b0, b1, b2):
     a[r + 2] += scale * b2
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@kernel(inline=True)
 def _add_gram(A, a0, a1, a2, b0, b1, b2, c0, c1, c2):
     """The upper triangle of ``A[:9, :9] += z z^T`` for ``z = [a, b, c]`` (three 3-vectors), in
     3 x 3 blocks."""
@@ -64,7 +106,7 @@ def _add_gram(A, a0, a1, a2, b0, b1, b2, c0, c1, c2):
     _add_self_outer(A, 6, c0, c1, c2)
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@kernel(inline=True)
 def _add_scaled_three(a, scale, b0, b1, b2, c0, c1, c2, d0, d1, d2):
     """``a[:9] += scale * [b, c, d]`` for three 3-vectors."""
     _add_scaled(a, 0, scale, b0, b1, b2)
@@ -72,7 +114,7 @@ def _add_scaled_three(a, scale, b0, b1, b2, c0, c1, c2, d0, d1, d2):
     _add_scaled(a, 6, scale, d0, d1, d2)
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@kernel
 def group_moments(fit, link, points_link, normals_link, targets, target_normals, n_fits, n_links):
     """Per-group moments of matched pairs.
 
@@ -83,18 +125,17 @@ def group_moments(fit, link, points_link, normals_link, targets, target_normals,
         n_fits, n_links: B and L.
 
     Returns:
-        ``origin`` (B, 3): each fit's target centroid (object frame, metres), ``fit_count``
-        (B,), and per group ``M`` (G, 12, 12), ``N`` (G, 9, 9), ``v`` (G, 12), ``beta2`` (G,),
-        ``w`` (G, 9), ``s`` (G, 4), ``count`` (G,) with ``G = B * L``; the sums are taken
-        about ``origin``.
+        The :class:`GroupMoments`: ``origin`` (B, 3): each fit's target centroid (object frame,
+        metres), ``fit_count`` (B,), and per group ``M`` (G, 12, 12), ``N`` (G, 9, 9), ``v``
+        (G, 12), ``beta2`` (G,), ``w`` (G, 9), ``s`` (G, 4), ``count`` (G,) with ``G = B * L``;
+        the sums are taken about ``origin``.
 
     A pair adds ``y y^T`` to ``M`` and ``beta y`` to ``v`` for ``y = [x_0 n, x_1 n, x_2 n, n]``
     (``n = n^q_i``, ``beta = (q_i - origin) . n``), and ``u u^T`` to ``N``, ``u`` to ``w`` for
     ``u = [m_0 n, m_1 n, m_2 n]`` (``m`` the link-frame normal), in 3 x 3 blocks of the upper
     triangles, every entry a sum over the pairs in their order from +0 (the lower triangles
     are copied from the upper at the end). Each component of ``y`` and ``u`` is computed once
-    per pair and kept in a register: about 1.5x faster than loops over the entries (60 against
-    90 ns per pair), the same sums bit for bit.
+    per pair and kept in a register rather than looped over entry by entry (the same sums).
     """
     n_groups = n_fits * n_links
     origin = np.zeros((n_fits, 3))
@@ -152,10 +193,10 @@ def group_moments(fit, link, points_link, normals_link, targets, target_normals,
         for i in range(9):
             for j in range(i):
                 N[g, i, j] = N[g, j, i]
-    return origin, fit_count, M, N, v, beta2, w, s, count
+    return GroupMoments(origin, fit_count, M, N, v, beta2, w, s, count)
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@kernel
 def link_poses(T, rotations, positions, A, a):
     """Every contact link's pose in the object frame, in place: ``A[l] = R_palm R_link`` (L, 3, 3)
     and the origins ``a[l]`` (L, 3), for one fit (``T`` (4, 4), ``rotations`` (L, 3, 3),
@@ -167,7 +208,8 @@ def link_poses(T, rotations, positions, A, a):
 
 @leaf
 def _group_pose(T, rotation, position, origin, A, a):
-    """``A = R_palm R_link`` (3, 3) and the link origin ``a`` (3,) relative to ``origin``, in place."""
+    """``A = R_palm R_link`` (3, 3) and the link origin ``a`` (3,) relative to ``origin``, in
+    place."""
     for i in range(3):
         for j in range(3):
             A[i, j] = T[i, 0] * rotation[0, j] + T[i, 1] * rotation[1, j] + T[i, 2] * rotation[2, j]
@@ -228,7 +270,7 @@ def _add_sandwich(X, M, rows, cols, weight, out, XM, used):
             out[i, j] += weight * acc
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@kernel(inline=True)
 def _lever_dot(G, i, M, j, cols):
     """``sum_k G[i, k] M[k, j]`` over the columns ``k < cols`` (9 or 12) where row ``i`` (0-2)
     of the palm's lever matrix may be non-zero, in ascending order from +0: row ``i`` holds
@@ -282,7 +324,7 @@ def _normal_residual(N, P, w, out):
         out[i] = acc
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@kernel
 def fit_errors(T, rotations, positions, origin, M, N, v, beta2, w, count, alpha2):
     """``E = E_p + alpha^2 E_n`` of each fit, (B,), m^2.
 
@@ -319,11 +361,13 @@ def fit_errors(T, rotations, positions, origin, M, N, v, beta2, w, count, alpha2
     return E
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def _palm_system(b, T, rotations, positions, origin, fit_count, M, N, v, w, s, count, alpha2,
-                 H, grad, centre):
+@kernel
+def _palm_system(b, T, rotations, positions, sums, alpha2, H, grad, centre):
     """Palm normal equations of fit ``b`` about its contact centroid, into ``H`` (6, 6),
-    ``grad`` (6,) and ``centre`` (3,) (object frame, relative to ``origin[b]``)."""
+    ``grad`` (6,) and ``centre`` (3,) (object frame, relative to ``origin[b]``); ``sums``:
+    :class:`_PalmMoments`."""
+    origin, fit_count, M, N, v, w, s, count = (sums.origin, sums.fit_count, sums.M, sums.N,
+                                               sums.v, sums.w, sums.s, sums.count)
     n_links = rotations.shape[1]
     A, a = np.empty((n_links, 3, 3)), np.empty((n_links, 3))
     for j in range(3):
@@ -371,15 +415,15 @@ def _palm_system(b, T, rotations, positions, origin, fit_count, M, N, v, w, s, c
                 grad[i] -= alpha2 * acc
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@kernel
 def palm_systems(T, rotations, positions, origin, fit_count, M, N, v, w, s, count, alpha2):
     """Palm normal equations of every fit: ``H`` (B, 6, 6), ``g`` (B, 6) for the twist
     ``[r, u]`` about each fit's contact centroid, and the centroids (B, 3), object frame."""
     n_fits = rotations.shape[0]
     H, grad, centre = np.empty((n_fits, 6, 6)), np.empty((n_fits, 6)), np.empty((n_fits, 3))
+    sums = _PalmMoments(origin, fit_count, M, N, v, w, s, count)
     for b in range(n_fits):
-        _palm_system(b, T, rotations, positions, origin, fit_count, M, N, v, w, s, count, alpha2,
-                     H[b], grad[b], centre[b])
+        _palm_system(b, T, rotations, positions, sums, alpha2, H[b], grad[b], centre[b])
         for j in range(3):
             centre[b, j] += origin[b, j]
     return H, grad, centre
@@ -412,7 +456,7 @@ def solve_small(LU, y, x):
         x[i] = acc / LU[i, i]
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@kernel
 def palm_motion(H, grad, centre, max_rotation, out):
     """Solve ``H x = grad`` (6, 6), (6,) for the twist ``x = [r, u]`` about ``centre`` (3,) and
     write its motion ``T_delta`` (4, 4) into ``out``; a rotation beyond ``max_rotation``
@@ -451,7 +495,7 @@ def palm_motion(H, grad, centre, max_rotation, out):
     out[3, 3] = 1.0
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@kernel
 def palm_motions(H, grad, centre, max_rotation):
     """:func:`palm_motion` of B systems ``H`` (B, 6, 6), ``grad`` (B, 6) about ``centre`` (B, 3):
     the motions (B, 4, 4)."""
@@ -461,16 +505,17 @@ def palm_motions(H, grad, centre, max_rotation):
     return out
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def palm_updates(T, rotations, positions, origin, fit_count, M, N, v, w, s, count, alpha2, max_rotation):
+@kernel
+def palm_updates(T, rotations, positions, origin, fit_count, M, N, v, w, s, count, alpha2,
+                 max_rotation):
     """One palm step of every fit: ``T_delta @ T`` with ``T_delta`` from :func:`palm_motion`
     of the fit's palm normal equations, (B, 4, 4)."""
     n_fits = rotations.shape[0]
     out = np.empty((n_fits, 4, 4))
     H, grad, centre, delta = np.empty((6, 6)), np.empty(6), np.empty(3), np.empty((4, 4))
+    sums = _PalmMoments(origin, fit_count, M, N, v, w, s, count)
     for b in range(n_fits):
-        _palm_system(b, T, rotations, positions, origin, fit_count, M, N, v, w, s, count, alpha2,
-                     H, grad, centre)
+        _palm_system(b, T, rotations, positions, sums, alpha2, H, grad, centre)
         for j in range(3):
             centre[j] += origin[b, j]
         palm_motion(H, grad, centre, max_rotation, delta)
@@ -481,7 +526,7 @@ def palm_updates(T, rotations, positions, origin, fit_count, M, N, v, w, s, coun
     return out
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@kernel
 def finger_systems(T, rotations, positions, J_linear, J_angular, origin, M, N, v, w, count, alpha):
     """Normal equations of every fit's finger least squares: ``A^T A`` (B, n, n), ``A^T b`` (B, n).
 
@@ -539,7 +584,7 @@ def finger_systems(T, rotations, positions, J_linear, J_angular, origin, M, N, v
     return AtA, Atb
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@kernel
 def points_in_object(T, rotations, positions, fit, link, points_link, normals_link):
     """Gripper points and normals moved into the object frame: point ``i`` (on contact link
     ``link[i]`` of fit ``fit[i]``) at ``A_g x_i + a_g``, its normal ``A_g nu_i``.
@@ -564,7 +609,7 @@ def points_in_object(T, rotations, positions, fit, link, points_link, normals_li
     return points, normals
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@kernel(inline=True)
 def place(A, a, l, x, nu, k, points, normals, i):
     """``points[i] = A[l] x[k] + a[l]`` and ``normals[i] = A[l] nu[k]``, in place: link-frame point
     and normal ``k`` moved by the pose ``A[l]`` (3, 3), ``a[l]`` (3,) of its link in the object

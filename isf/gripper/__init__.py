@@ -7,7 +7,7 @@ resolves mesh paths (:mod:`isf.gripper.mesh_paths`) and samples the tagged conta
 compiled code; :mod:`isf.gripper.bundled` lists the grippers shipped with isf.
 """
 
-from .model import ContactSurface, Gripper, LinkGeometry
 from .loading import inspect_gripper, load_gripper
+from .model import ContactSurface, Gripper, LinkGeometry
 
 __all__ = ["ContactSurface", "Gripper", "LinkGeometry", "inspect_gripper", "load_gripper"]

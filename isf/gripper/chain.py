@@ -25,14 +25,15 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
+from typing import NamedTuple
 
-import numba
 import numpy as np
 import pinocchio as pin
 
+from ..compiled.kernels import kernel
 from ..exceptions import InvalidInputError
 
-__all__ = ["KinematicChain"]
+__all__ = ["ChainArrays", "FrameKinematics", "KinematicChain", "compiled_frame_kinematics"]
 
 _log = logging.getLogger(__name__)
 
@@ -84,6 +85,34 @@ def _joint_row(model: pin.Model, jid: int) -> tuple[list[int], list[float], np.n
     return ints, [scale, offset, *axis], _se3_rows(placement)
 
 
+class ChainArrays(NamedTuple):
+    """The arrays of a :class:`KinematicChain` that :func:`compiled_frame_kinematics` reads
+    (fields as the chain's attributes of the same names)."""
+
+    nv: int
+    joint_ints: np.ndarray
+    joint_reals: np.ndarray
+    joint_placements: np.ndarray
+    frame_joints: np.ndarray
+    frame_placements: np.ndarray
+
+
+class FrameKinematics(NamedTuple):
+    """Poses and LOCAL_WORLD_ALIGNED Jacobians of F frames at B joint vectors.
+
+    Attributes:
+        rotations: frame orientations in the root frame, (B, F, 3, 3).
+        positions: frame origins in the root frame, (B, F, 3), metres.
+        J_linear: velocity of each frame origin, (B, F, 3, nv), root frame.
+        J_angular: angular velocity of each frame, (B, F, 3, nv), root frame.
+    """
+
+    rotations: np.ndarray
+    positions: np.ndarray
+    J_linear: np.ndarray
+    J_angular: np.ndarray
+
+
 @dataclass(frozen=True, eq=False)
 class KinematicChain:
     """A Pinocchio kinematic tree as flat arrays for the compiled kernel.
@@ -125,9 +154,10 @@ class KinematicChain:
                     model.name, model.names[jid], model.joints[jid].shortname(),
                 )
                 return None
-            ints.append(row[0])
-            reals.append(row[1])
-            placements.append(row[2])
+            joint_ints, joint_reals, placement = row
+            ints.append(joint_ints)
+            reals.append(joint_reals)
+            placements.append(placement)
         return cls(
             nq=int(model.nq),
             nv=int(model.nv),
@@ -138,9 +168,13 @@ class KinematicChain:
             frame_placements=np.array([_se3_rows(f.placement) for f in model.frames]),
         )
 
-    def frame_kinematics(
-        self, Q: np.ndarray, frames: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    @property
+    def arrays(self) -> ChainArrays:
+        """The chain's arrays as :func:`compiled_frame_kinematics` takes them."""
+        return ChainArrays(self.nv, self.joint_ints, self.joint_reals, self.joint_placements,
+                           self.frame_joints, self.frame_placements)
+
+    def frame_kinematics(self, Q: np.ndarray, frames: np.ndarray) -> FrameKinematics:
         """Poses and LOCAL_WORLD_ALIGNED Jacobians of frames at B joint vectors.
 
         Args:
@@ -148,9 +182,7 @@ class KinematicChain:
             frames: Pinocchio frame ids, shape (F,).
 
         Returns:
-            ``R`` (B, F, 3, 3) frame orientations; ``p`` (B, F, 3) frame origins, metres;
-            ``J_linear`` (B, F, 3, nv) velocity of the frame origin and ``J_angular``
-            (B, F, 3, nv) angular velocity, both expressed in the root frame.
+            The frames' :class:`FrameKinematics`.
 
         Raises:
             InvalidInputError: ``Q`` is not (B, nq).
@@ -165,13 +197,10 @@ class KinematicChain:
         # Read-only arrays would compile a second specialisation of the kernel.
         Q = Q if Q.flags.writeable else Q.copy()
         frames = frames if frames.flags.writeable else frames.copy()
-        return compiled_frame_kinematics(
-            Q, frames, self.nv, self.joint_ints, self.joint_reals,
-            self.joint_placements, self.frame_joints, self.frame_placements,
-        )
+        return compiled_frame_kinematics(Q, frames, self.arrays)
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@kernel(inline=True, error_model="python")
 def _compose(A, B, out):
     """``out = A * B`` for poses stored as ``[R | p]`` (3, 4), summed as Eigen does in pin's
     build: rows 0-1 in SIMD pairs left to right, row 2 as a scalar reduction tree."""
@@ -182,7 +211,7 @@ def _compose(A, B, out):
         out[r, 3] += A[r, 3]
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@kernel(inline=True, error_model="python")
 def _local_pose(q, j, ints, reals, placements, M, L):
     """Pose ``[R | p]`` of joint ``j`` in its parent joint's frame at ``q`` (nq,) into ``L``
     (3, 4), as pin's ``jointPlacement * M(q)``; ``M`` (3, 4) is scratch."""
@@ -236,13 +265,17 @@ def _local_pose(q, j, ints, reals, placements, M, L):
     _compose(P, M, L)
 
 
-@numba.njit(cache=True, nogil=True)
-def compiled_frame_kinematics(Q, frames, nv, ints, reals, placements, frame_joints, frame_placements):
-    """Compiled body of :meth:`KinematicChain.frame_kinematics` (arguments as its attributes).
+@kernel(error_model="python")
+def compiled_frame_kinematics(Q, frames, chain):
+    """Compiled body of :meth:`KinematicChain.frame_kinematics`: the :class:`FrameKinematics` of
+    ``frames`` (F,) at joint vectors ``Q`` (B, nq) of the chain ``chain`` (:class:`ChainArrays`).
 
     The arithmetic repeats Pinocchio 4.1's (forwardKinematics, the joints' ``se3Action``,
     computeJointJacobians, getFrameJacobian) operation by operation and in its order.
     """
+    nv, ints, reals = chain.nv, chain.joint_ints, chain.joint_reals
+    placements = chain.joint_placements
+    frame_joints, frame_placements = chain.frame_joints, chain.frame_placements
     B, F, nj, nf = Q.shape[0], frames.shape[0], ints.shape[0], frame_joints.shape[0]
     for k in range(F):
         if frames[k] < 0 or frames[k] >= nf:
@@ -274,7 +307,7 @@ def compiled_frame_kinematics(Q, frames, nv, ints, reals, placements, frame_join
                     lin[j, r], ang[j, r] = w, 0.0
                 else:
                     ang[j, r] = w
-            if kind == _REVOLUTE or kind == _UNBOUNDED:  # p x w
+            if kind == _REVOLUTE or kind == _UNBOUNDED:  # noqa: SIM109 (compiled); p x w
                 lin[j, 0] = T[1, 3] * ang[j, 2] - T[2, 3] * ang[j, 1]
                 lin[j, 1] = T[2, 3] * ang[j, 0] - T[0, 3] * ang[j, 2]
                 lin[j, 2] = T[0, 3] * ang[j, 1] - T[1, 3] * ang[j, 0]
@@ -308,4 +341,4 @@ def compiled_frame_kinematics(Q, frames, nv, ints, reals, placements, frame_join
                                 J_lin[b, k, r, v] = (J_lin[b, k, r, v] + lin[j, r]) - pxw[r]
                                 J_ang[b, k, r, v] += ang[j, r]
                     j = ints[j, 0]
-    return R_out, p_out, J_lin, J_ang
+    return FrameKinematics(R_out, p_out, J_lin, J_ang)

@@ -30,10 +30,10 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from .bundled import bundled_grippers
 from ..exceptions import ConfigError, GripperDescriptionError
-from .model import ContactSurface, Gripper, LinkGeometry
+from .bundled import bundled_grippers
 from .mesh_paths import MeshNotFoundError, PackageDirs, mesh_path_candidates
+from .model import ContactSurface, Gripper, LinkGeometry
 from .surface_sampling import (
     GeometryLoadError,
     SurfaceSelectionError,
@@ -226,7 +226,8 @@ def _joint_problems(joints: tuple[JointReport, ...]) -> list[str]:
             leader = by_name.get(j.mimic_leader)
             if leader is None:
                 problems.append(
-                    f"joint {j.name!r} mimics {j.mimic_leader!r}, which does not exist: fix <mimic joint>"
+                    f"joint {j.name!r} mimics {j.mimic_leader!r}, which does not exist: "
+                    "fix <mimic joint>"
                 )
             elif not leader.actuated:
                 problems.append(
@@ -370,7 +371,8 @@ def _build_model(text: str, doc: TaggedURDF, problems: list[str]) -> pin.Model |
 
 
 def initial_configuration(model: pin.Model, doc: TaggedURDF) -> np.ndarray:
-    """The initial joint vector: ``<isf:initial>`` values, else the middle of each joint's limits."""
+    """The initial joint vector: ``<isf:initial>`` values, else the middle of each joint's
+    limits."""
     values = {t.joint: t.value for t in doc.initial}
     q = 0.5 * (np.asarray(model.lowerPositionLimit) + np.asarray(model.upperPositionLimit))
     for jid in range(1, model.njoints):
@@ -487,7 +489,8 @@ def load_gripper(
         isinstance(points_per_surface, int) and 1 <= points_per_surface <= MAX_POINTS
     ):
         raise ConfigError(
-            f"points_per_surface must be an integer in [1, {MAX_POINTS}], got {points_per_surface!r}"
+            f"points_per_surface must be an integer in [1, {MAX_POINTS}], "
+            f"got {points_per_surface!r}"
         )
     report, gripper = _load(name_or_path, package_dirs, points_per_surface)
     if gripper is None:
@@ -506,7 +509,8 @@ def format_report(report: GripperReport) -> str:
     if report.root_link is not None or report.links:
         approach = "-" if report.approach is None else " ".join(f"{v:.3g}" for v in report.approach)
         lines += [
-            f"root link {report.root_link or '-'}   palm link {report.palm_link or '-'}   approach {approach}",
+            f"root link {report.root_link or '-'}   palm link {report.palm_link or '-'}   "
+            f"approach {approach}",
             f"links     {len(report.links)}: {', '.join(report.links)}",
         ]
     if report.joints:

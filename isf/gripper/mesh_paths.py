@@ -21,29 +21,11 @@ from collections.abc import Mapping
 from pathlib import Path
 from urllib.parse import unquote, urlparse
 
-from ..exceptions import ISFError
+from ..exceptions import MeshNotFoundError
 
 __all__ = ["MeshNotFoundError", "mesh_path_candidates", "resolve_mesh_path"]
 
 PackageDirs = Mapping[str, "str | Path"]
-
-
-class MeshNotFoundError(ISFError):
-    """A URDF mesh filename matches no file.
-
-    Attributes:
-        filename: the filename as written in the URDF.
-        tried: every path that was checked, in order.
-    """
-
-    def __init__(self, filename: str, tried: list[Path]):
-        self.filename = filename
-        self.tried = list(tried)
-        shown = ", ".join(str(p) for p in self.tried) or "nothing"
-        super().__init__(
-            f"mesh {filename!r} not found (tried {shown}); fix the path or pass "
-            f"package_dirs={{'<pkg>': '/path/to/pkg'}} for package:// paths"
-        )
 
 
 def _package_candidates(
@@ -91,7 +73,10 @@ def mesh_path_candidates(
 
 
 def resolve_mesh_path(
-    filename: str, urdf_dir: str | Path, package_dirs: PackageDirs | None = None
+    filename: str,
+    urdf_dir: str | Path,
+    package_dirs: PackageDirs | None = None,
+    link: str | None = None,
 ) -> Path:
     """The existing file a URDF mesh filename denotes.
 
@@ -99,6 +84,7 @@ def resolve_mesh_path(
         filename: the ``<mesh filename>`` attribute.
         urdf_dir: folder of the URDF file.
         package_dirs: optional ``{package name: package folder}`` map.
+        link: the link whose geometry names the mesh, recorded in the error.
 
     Returns:
         the first candidate of :func:`mesh_path_candidates` that is a file.
@@ -110,4 +96,4 @@ def resolve_mesh_path(
     for path in tried:
         if path.is_file():
             return path
-    raise MeshNotFoundError(filename, tried)
+    raise MeshNotFoundError(filename, tried, link)

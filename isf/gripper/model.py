@@ -158,7 +158,9 @@ class Gripper:
         links = sorted({s.link for s in self.surfaces}, key=[s.link for s in self.surfaces].index)
         self.contact_links: tuple[str, ...] = tuple(links)
         """The links that carry contact surfaces, in order of first appearance."""
-        self._link_frames = np.array([self.model.getFrameId(link) for link in links], dtype=np.int64)
+        self._link_frames = np.array(
+            [self.model.getFrameId(link) for link in links], dtype=np.int64
+        )
         link_of = {link: k for k, link in enumerate(links)}
         self.points_link = np.concatenate([s.points for s in self.surfaces]).astype(float)
         self.normals_link = np.concatenate([s.normals for s in self.surfaces]).astype(float)
@@ -265,7 +267,9 @@ class Gripper:
         J_linear, J_angular = np.ascontiguousarray(J[:, :, :3]), np.ascontiguousarray(J[:, :, 3:])
         return LinkKinematics(R, p, J_linear, J_angular)
 
-    def contact_kinematics(self, q: np.ndarray, mask: np.ndarray | None = None) -> ContactKinematics:
+    def contact_kinematics(
+        self, q: np.ndarray, mask: np.ndarray | None = None
+    ) -> ContactKinematics:
         """Contact points, normals and their Jacobians at ``q``, gripper frame.
 
         Args:
@@ -289,7 +293,9 @@ class Gripper:
         J_points = Jv + np.stack([wy * rz - wz * ry, wz * rx - wx * rz, wx * ry - wy * rx], axis=1)
         return ContactKinematics(r + links.positions[li], normals, J_points, Jw)
 
-    def contact_points(self, q: np.ndarray, mask: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def contact_points(
+        self, q: np.ndarray, mask: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Contact points and normals at ``q`` in the gripper frame, each (n_selected, 3).
 
         Args:

@@ -25,9 +25,9 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from ..exceptions import ISFError
-from .model import ContactSurface
+from ..exceptions import GeometryLoadError, SurfaceSelectionError
 from .mesh_paths import PackageDirs, resolve_mesh_path
+from .model import ContactSurface
 from .urdf_tags import ContactTag, GeometryElement, LinkElement
 
 __all__ = [
@@ -48,24 +48,18 @@ _SPHERE_SUBDIVISIONS = 3
 _OPEN_SHEET_THRESHOLD = -0.1
 
 
-class GeometryLoadError(ISFError, ValueError):
-    """A URDF geometry element cannot be turned into a triangle mesh."""
-
-
-class SurfaceSelectionError(ISFError, ValueError):
-    """An ``<isf:contact>`` tag selects no usable geometry or no face."""
-
-
 # ------------------------------------------------------------------ loading
 def _read_mesh_file(path: Path) -> tuple[np.ndarray, np.ndarray]:
     try:
         mesh = trimesh.load(str(path), force="mesh", process=False, skip_materials=True)
     except Exception as exc:  # trimesh raises many types for unreadable files
         raise GeometryLoadError(
-            f"cannot read mesh {path} ({exc}): convert it to STL or OBJ"
+            f"cannot read mesh {path} ({exc}): convert it to STL or OBJ", path=path, shape="mesh"
         ) from exc
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
-        raise GeometryLoadError(f"mesh {path} holds no triangles: export it as a triangle mesh")
+        raise GeometryLoadError(
+            f"mesh {path} holds no triangles: export it as a triangle mesh", path=path, shape="mesh"
+        )
     return np.asarray(mesh.vertices, dtype=float), np.asarray(mesh.faces, dtype=np.int64)
 
 
@@ -91,7 +85,7 @@ def load_geometry(
         GeometryLoadError: unreadable mesh or unsupported shape.
     """
     if geom.shape == "mesh" and geom.filename:
-        path = resolve_mesh_path(geom.filename, urdf_dir, package_dirs)
+        path = resolve_mesh_path(geom.filename, urdf_dir, package_dirs, geom.link)
         if cache is not None and path in cache:
             vertices, faces = cache[path]
         else:
@@ -114,7 +108,8 @@ def load_geometry(
         vertices, faces = prim.vertices, prim.faces
     else:
         raise GeometryLoadError(
-            f"unsupported geometry <{geom.shape}>: use a mesh, box, cylinder or sphere"
+            f"unsupported geometry <{geom.shape}>: use a mesh, box, cylinder or sphere",
+            shape=geom.shape,
         )
     T = geom.T_link_geom
     vertices = np.asarray(vertices, dtype=float) @ T[:3, :3].T + T[:3, 3]
@@ -132,7 +127,9 @@ def tag_elements(tag: ContactTag, link: LinkElement) -> list[GeometryElement]:
         other = "visual" if tag.source == "collision" else "collision"
         raise SurfaceSelectionError(
             f"contact {tag.name!r}: link {tag.link!r} has no <{tag.source}> element: "
-            f'add one or set source="{other}"'
+            f'add one or set source="{other}"',
+            contact=tag.name,
+            link=tag.link,
         )
     if tag.geometry is None:
         return list(elements)
@@ -144,7 +141,9 @@ def tag_elements(tag: ContactTag, link: LinkElement) -> list[GeometryElement]:
         names = ", ".join(repr(e.name) for e in elements)
         raise SurfaceSelectionError(
             f"contact {tag.name!r}: link {tag.link!r} has no <{tag.source}> named "
-            f"{tag.geometry!r}; its {tag.source} elements are {names}"
+            f"{tag.geometry!r}; its {tag.source} elements are {names}",
+            contact=tag.name,
+            link=tag.link,
         )
     return chosen
 
@@ -199,7 +198,9 @@ def select_faces(tag: ContactTag, meshes: Sequence[trimesh.Trimesh]) -> FaceSele
         raise SurfaceSelectionError(
             f"contact {tag.name!r}: the selection keeps no face ({n_all} faces, {n_cone} within "
             f"the normal cone, 0 also in the box): check normal/max_angle/box_min/box_max, "
-            f"which are in link {tag.link!r}'s frame"
+            f"which are in link {tag.link!r}'s frame",
+            contact=tag.name,
+            link=tag.link,
         )
     return FaceSelection(tris[keep], normals[keep], 0.5 * doubled[keep], element[keep])
 

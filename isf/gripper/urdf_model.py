@@ -18,16 +18,12 @@ import xml.etree.ElementTree as ET
 
 import pinocchio as pin
 
-from ..exceptions import ISFError
+from ..exceptions import ModelBuildError
 from .urdf_tags import TaggedURDF
 
 __all__ = ["ModelBuildError", "build_model"]
 
 _PREFIX = "isf{:05d}__"
-
-
-class ModelBuildError(ISFError, ValueError):
-    """Pinocchio cannot build a kinematic model from the URDF."""
 
 
 def _leader_first_ranks(doc: TaggedURDF) -> dict[str, int]:
@@ -103,16 +99,15 @@ def build_model(text: str, doc: TaggedURDF) -> pin.Model:
     except (RuntimeError, ValueError) as exc:
         first = exc
     if doc.root is None or doc.root_link is None or "mimic" not in str(first):
-        raise ModelBuildError(
-            f"Pinocchio cannot build the kinematic model ({first}): fix the URDF structure"
-        )
+        raise ModelBuildError(first, "fix the URDF structure")
     ranks = _leader_first_ranks(doc)
     try:
         model = pin.buildModelFromXML(_renamed_xml(doc, ranks), mimic=True)
     except (RuntimeError, ValueError) as exc:
         raise ModelBuildError(
-            f"Pinocchio cannot build the kinematic model ({exc}): every mimic joint must "
-            "follow its leader in depth-first order; restructure the joint tree"
+            exc,
+            "every mimic joint must follow its leader in depth-first order; "
+            "restructure the joint tree",
         ) from exc
     _strip_prefixes(model, ranks)
     return model

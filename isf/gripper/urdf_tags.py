@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..exceptions import ISFError
+from ..exceptions import URDFReadError
 
 __all__ = [
     "ISF_NS",
@@ -57,10 +57,6 @@ _GRIPPER_ATTRS = ("palm_link", "approach")
 MAX_POINTS = 10_000
 """Largest ``points`` a contact tag may ask for (farthest-point ordering is O(points^2))."""
 _INITIAL_ATTRS = ("joint", "value")
-
-
-class URDFReadError(ISFError, ValueError):
-    """The text is not XML, or its root element is not ``<robot>``."""
 
 
 # ---------------------------------------------------------------- structures
@@ -486,14 +482,46 @@ def _read_isf(rd: _Reader, root: ET.Element, isf_uris: set[str]):
 
 
 # ---------------------------------------------------------------------- API
+def _syntax_error(original: str, parsed: str) -> URDFReadError:
+    """The syntax error of ``parsed`` (``original`` with prefixes declared on its root tag),
+    positioned in ``original``.
+
+    The position comes from a plain parse: ``XMLPullParser`` reports positions past the error.
+    """
+    try:
+        plain = ET.XMLParser()
+        plain.feed(parsed)
+        plain.close()
+    except ET.ParseError as exc:
+        line, column = exc.position
+        reason = str(exc).rsplit(": line ", 1)[0]
+    else:  # the pull parser alone rejects the text
+        line = column = None
+        reason = "the XML parser rejects it"
+    if line is not None and len(parsed) > len(original):
+        # map a position behind the inserted declarations back into the original text
+        at = next((i for i, (a, b) in enumerate(zip(original, parsed)) if a != b), len(original))
+        lines = parsed.split("\n")
+        offset = sum(len(x) + 1 for x in lines[: line - 1]) + column
+        if offset >= at:
+            offset = max(at, offset - (len(parsed) - len(original)))
+        line = original.count("\n", 0, offset) + 1
+        column = offset - (original.rfind("\n", 0, offset) + 1)
+    where = "" if line is None else f": line {line}, column {column}"
+    return URDFReadError(
+        f"not valid XML ({reason}{where}): fix the file's syntax", line=line, column=column
+    )
+
+
 def _parse_xml(text: str) -> tuple[ET.Element, dict[str, str], list[str]]:
+    original = text
     text, missing = _declare_missing_prefixes(text)
     parser = ET.XMLPullParser(events=("start-ns", "start"))
     try:
         parser.feed(text)
         parser.close()
     except ET.ParseError as exc:
-        raise URDFReadError(f"not valid XML ({exc}): fix the file's syntax") from exc
+        raise _syntax_error(original, text) from exc
     root, ns = None, {}
     for event, payload in parser.read_events():
         if event == "start-ns":
@@ -502,7 +530,9 @@ def _parse_xml(text: str) -> tuple[ET.Element, dict[str, str], list[str]]:
             root = payload
     if root is None or root.tag != "robot":
         tag = None if root is None else root.tag
-        raise URDFReadError(f"not a URDF: the root element is <{tag}>, expected <robot>")
+        raise URDFReadError(
+            f"not a URDF: the root element is <{tag}>, expected <robot>", root_tag=tag
+        )
     return root, ns, missing
 
 
@@ -528,7 +558,8 @@ def parse_tagged_urdf(text: str) -> TaggedURDF:
     if ns.get("isf", ISF_NS) != ISF_NS:
         isf_uris.add(ns["isf"])
         rd.problems.append(
-            f'xmlns:isf is bound to {ns["isf"]!r}: bind it to "{ISF_NS}" (version 1 of the convention)'
+            f'xmlns:isf is bound to {ns["isf"]!r}: bind it to "{ISF_NS}" '
+            "(version 1 of the convention)"
         )
     links: dict[str, LinkElement] = {}
     for elem in root.findall("link"):
@@ -545,13 +576,15 @@ def parse_tagged_urdf(text: str) -> TaggedURDF:
         for role in ("parent", "child"):
             if getattr(joint, role) not in links:
                 rd.problems.append(
-                    f"joint {joint.name!r} names {role} link {getattr(joint, role)!r}, which does not exist"
+                    f"joint {joint.name!r} names {role} link {getattr(joint, role)!r}, "
+                    "which does not exist"
                 )
     children = {j.child for j in joints.values()}
     roots = [name for name in links if name not in children]
     if len(roots) != 1:
         rd.problems.append(
-            f"the URDF must have exactly one root link (a link that is no joint's child); found {roots}"
+            "the URDF must have exactly one root link (a link that is no joint's child); "
+            f"found {roots}"
         )
     contacts, gripper, initial = _read_isf(rd, root, isf_uris)
     return TaggedURDF(

@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._spanning_tree import tree_signs
 from ..search.voxel_grid import group_mean
+from ._spanning_tree import tree_signs
 
 __all__ = ["estimate_normals", "facing_away", "orient_normals_mst", "voxel_downsample"]
 

@@ -60,7 +60,7 @@ def read_source(source) -> tuple[RawObject, str]:
     if isinstance(source, (str, os.PathLike)):
         path = Path(source)
         return _read_file(path), path.name
-    import trimesh  # imported here: it takes ~0.7 s and clouds do not need it
+    import trimesh  # imported here: importing it is slow and clouds do not need it
 
     if isinstance(source, (trimesh.Trimesh, trimesh.Scene)):
         return _raw_from_geometry(source, "the mesh"), "mesh"

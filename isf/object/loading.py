@@ -37,21 +37,25 @@ is refined up to six times with ``h <- h * sqrt(n(h) / 3000)`` until ``n`` lies 
 distance. ``max_points`` caps the result by growing the voxel size further.
 
 Layout: this module holds the public entry, its constants, the checks of arguments and data,
-and the resolution rule. Reading is in :mod:`isf.object._readers` (with :mod:`isf.object._obj_reader`
-and :mod:`isf.object._pcd_reader`), mesh cleaning and sampling in :mod:`isf.object.mesh_sampling`, cloud
-downsampling and normals in :mod:`isf.object._normals`, on top of :mod:`isf.search.voxel_grid` and
-:mod:`isf.object._spanning_tree`.
+and the resolution rule. Reading is in :mod:`isf.object._readers` (with
+:mod:`isf.object._obj_reader` and :mod:`isf.object._pcd_reader`), mesh cleaning and sampling in
+:mod:`isf.object.mesh_sampling`, cloud downsampling and normals in :mod:`isf.object._normals`,
+on top of :mod:`isf.search.voxel_grid` and :mod:`isf.object._spanning_tree`.
 """
 
 from __future__ import annotations
 
 import logging
+import os
+from pathlib import Path
 
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ._normals import estimate_normals, facing_away, orient_normals_mst, voxel_downsample
 from ..exceptions import InvalidInputError, ObjectLoadError
+from ..search.voxel_grid import voxel_labels
+from ._normals import estimate_normals, facing_away, orient_normals_mst, voxel_downsample
+from ._readers import RawObject, read_source
 from .mesh_sampling import (
     clean_mesh,
     orient_bodies,
@@ -59,9 +63,7 @@ from .mesh_sampling import (
     triangle_normals,
     voxel_representatives,
 )
-from ._readers import RawObject, read_source
 from .surface import ObjectSurface
-from ..search.voxel_grid import voxel_labels
 
 __all__ = ["UNIT_FACTORS", "load_object"]
 
@@ -134,12 +136,17 @@ def load_object(
         )
     view = _viewpoint(viewpoint)
 
-    raw, default_name = read_source(source)
-    label = name if name is not None else default_name
-    if raw.faces is not None:
-        surface = _mesh_surface(raw, factor, units, voxel_size, max_points, view, label)
-    else:
-        surface = _cloud_surface(raw, factor, units, voxel_size, max_points, view, label)
+    try:
+        raw, default_name = read_source(source)
+        label = name if name is not None else default_name
+        if raw.faces is not None:
+            surface = _mesh_surface(raw, factor, units, voxel_size, max_points, view, label)
+        else:
+            surface = _cloud_surface(raw, factor, units, voxel_size, max_points, view, label)
+    except ObjectLoadError as exc:
+        if exc.source is None and isinstance(source, (str, os.PathLike)):
+            exc.source = Path(source)
+        raise
     logger.info("loaded %s: %d points, spacing %.4g m", label, surface.n_points, surface.spacing)
     return surface
 

@@ -18,8 +18,8 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from ..exceptions import ObjectLoadError
-from ._spanning_tree import tree_signs
 from ..search.voxel_grid import group_mean
+from ._spanning_tree import tree_signs
 
 __all__ = [
     "clean_mesh",

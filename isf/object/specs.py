@@ -15,14 +15,16 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..exceptions import ObjectLoadError
-from .loading import load_object
 from ._readers import check_file
+from .loading import load_object
 from .surface import ObjectSurface
 
 __all__ = ["check_object_spec", "open_object"]
 
 
-def open_object(spec: str | Path, *, units: str = "m", scale: float = 1.0, **kwargs) -> ObjectSurface:
+def open_object(
+    spec: str | Path, *, units: str = "m", scale: float = 1.0, **kwargs
+) -> ObjectSurface:
     """Load the object named by ``spec`` (a path, ``shape:NAME`` or ``asset:NAME``).
 
     Args:
@@ -67,7 +69,9 @@ def _shape(spec: str):
     try:
         return make_shape(spec.removeprefix("shape:"))
     except KeyError as err:
-        raise ObjectLoadError(f"{err.args[0]}: pass --object shape:NAME with one of them") from None
+        raise ObjectLoadError(
+            f"{err.args[0]}: pass --object shape:NAME with one of them", source=spec
+        ) from None
 
 
 def _asset(spec: str):
@@ -78,4 +82,4 @@ def _asset(spec: str):
     try:
         return benchmark_object(spec.removeprefix("asset:"))
     except ISFError as err:
-        raise ObjectLoadError(str(err)) from None
+        raise ObjectLoadError(str(err), source=spec) from None

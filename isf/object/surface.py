@@ -67,7 +67,9 @@ class ObjectSurface:
             self._search = NearestPoints(self.points, graph=True)
         return self._search
 
-    def nearest(self, query: np.ndarray, guess: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def nearest(
+        self, query: np.ndarray, guess: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Nearest surface point of each query point (exact; see :mod:`isf.search.nearest`).
 
         Args:

@@ -1,28 +1,39 @@
 """What happens to a sample after its proposal: the fit, the collision check, the repair.
 
 :class:`SampleJudge` checks a fitted grasp and, when it collides, repairs it once and checks it
-again; :class:`SampleWorker` adds the fit. :func:`isf.plan` keeps one judge for its sequential
-loop, or one worker per thread: a judge and a worker keep state between calls (the collision
-checker's and the fitter's scratch), so a thread must not share one, while everything they are
-built from (gripper, object, the memoised collision and repair set-up) is only read.
+again; :class:`SampleWorker` adds the fit. A judge and a worker keep state between calls (the
+collision checker's and the fitter's scratch), so a thread must not share one, while everything
+they are built from (gripper, object, the memoised collision and repair set-up) is only read.
+
+The loop of :func:`isf.planning.planner.plan` (Algorithm 3) starts samples and takes them back
+fitted and checked through one of two evaluators with the same methods (``window``, ``start``,
+``finished``, ``fit_time``, ``judges``, used as a context manager):
+:class:`LockstepEvaluations` fits the samples in flight together in the calling thread (one
+:class:`isf.fitting.engine.LockstepFitter` and one judge) and returns them as they finish;
+:class:`ThreadedEvaluations` evaluates each on a pool of threads (one worker each) and returns
+them in the order they were started.
 """
 
 from __future__ import annotations
 
+import queue
 import time
-from collections.abc import Sequence
+from collections import deque
+from collections.abc import Hashable, Iterator, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
 
 import numpy as np
 
-from ..repair.clearance import ClearanceRepair, RepairConfig, repair_penetration
 from ..collision.checker import CollisionChecker, CollisionReport, Plane
 from ..config import FitConfig
-from ..gripper.model import Gripper
 from ..fitting.engine import LockstepFitter
+from ..gripper.model import Gripper
 from ..object.surface import ObjectSurface
+from ..repair.clearance import ClearanceRepair, RepairConfig, repair_penetration
 from ..result import FitResult
+from ..samplers import Proposal
 
-__all__ = ["SampleJudge", "SampleWorker"]
+__all__ = ["LockstepEvaluations", "SampleJudge", "SampleWorker", "ThreadedEvaluations"]
 
 
 class SampleJudge:
@@ -93,3 +104,103 @@ class SampleWorker(SampleJudge):
             finished = self.fitter.advance()
         self.fit_time += time.perf_counter() - t0
         return self.judge(finished[0][1])
+
+
+Evaluated = tuple[Hashable, Proposal, FitResult, CollisionReport]
+"""A sample back from an evaluator: its index, its proposal, the grasp kept and its collision
+report."""
+
+
+class LockstepEvaluations:
+    """Samples fitted together in lockstep in the calling thread, each judged as soon as its fit
+    ends.
+
+    Args:
+        fitter: the fitter the samples run in.
+        judge: checks (and repairs) each fitted sample.
+        window: samples in flight at most (the batch size).
+
+    Attributes:
+        fit_time: seconds spent fitting, summed over calls (the judge counts its repairs).
+    """
+
+    def __init__(self, fitter: LockstepFitter, judge: SampleJudge, window: int):
+        self.fitter, self.window, self.judges = fitter, window, [judge]
+        self._proposals: dict[Hashable, Proposal] = {}
+        self.fit_time = 0.0
+
+    def __enter__(self) -> LockstepEvaluations:
+        return self
+
+    def __exit__(self, *_) -> None:
+        return None
+
+    def start(self, index: Hashable, proposal: Proposal) -> None:
+        """Start fitting sample ``index`` from its proposal.
+
+        Raises:
+            InvalidInputError: the proposal's pose or joints are invalid.
+        """
+        self.fitter.add(index, proposal.T_object_gripper, proposal.q)
+        self._proposals[index] = proposal
+
+    def finished(self) -> Iterator[Evaluated]:
+        """The samples whose fits end next (at least one while any is in flight), in index
+        order, each judged as it is taken."""
+        t0 = time.perf_counter()
+        ended = self.fitter.advance()
+        self.fit_time += time.perf_counter() - t0
+        for index, result in sorted(ended, key=lambda item: item[0]):
+            yield (index, self._proposals.pop(index), *self.judges[0].judge(result))
+
+
+class ThreadedEvaluations:
+    """Samples fitted, checked and repaired on a pool of threads, one worker per thread, and
+    taken back in the order they were started (so what the caller sees does not depend on the
+    threads' timing).
+
+    Args:
+        workers: one :class:`SampleWorker` per thread.
+        window: samples in flight at most.
+
+    Attributes:
+        fit_time: 0; the workers count their fitting and repairs.
+    """
+
+    def __init__(self, workers: list[SampleWorker], window: int):
+        self.judges, self.window = workers, window
+        self._idle: queue.SimpleQueue[SampleWorker] = queue.SimpleQueue()
+        for worker in workers:
+            self._idle.put(worker)
+        self._pending: deque[tuple[Hashable, Proposal, Future]] = deque()
+        self._pool: ThreadPoolExecutor | None = None
+        self.fit_time = 0.0
+
+    def __enter__(self) -> ThreadedEvaluations:
+        self._pool = ThreadPoolExecutor(len(self.judges), thread_name_prefix="isf-plan")
+        return self
+
+    def __exit__(self, *_) -> None:
+        for *_, future in self._pending:
+            future.cancel()
+        self._pool.shutdown(wait=True)
+
+    def _evaluate(self, proposal: Proposal) -> tuple[FitResult, CollisionReport]:
+        worker = self._idle.get()  # never waits: no more tasks run than there are workers
+        try:
+            return worker.evaluate(proposal.T_object_gripper, proposal.q)
+        finally:
+            self._idle.put(worker)
+
+    def start(self, index: Hashable, proposal: Proposal) -> None:
+        """Queue sample ``index`` for the next free thread."""
+        self._pending.append((index, proposal, self._pool.submit(self._evaluate, proposal)))
+
+    def finished(self) -> Iterator[Evaluated]:
+        """The oldest sample in flight, once its thread is done with it.
+
+        Raises:
+            InvalidInputError: the proposal's pose or joints are invalid.
+        """
+        index, proposal, future = self._pending.popleft()
+        yield (index, proposal, *future.result())

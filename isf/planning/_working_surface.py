@@ -23,7 +23,8 @@ from ..object.mesh_sampling import voxel_representatives
 from ..object.surface import ObjectSurface
 from ..search.voxel_grid import voxel_labels
 
-__all__ = ["SPACING_FACTOR", "contact_spacing", "resolve_spacing", "working_spacing", "working_surface"]
+__all__ = ["SPACING_FACTOR", "contact_spacing", "resolve_spacing", "working_spacing",
+           "working_surface"]
 
 logger = logging.getLogger(__name__)
 

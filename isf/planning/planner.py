@@ -1,29 +1,34 @@
 """Grasp planning by guided sampling (paper Algorithm 3): :func:`plan`.
 
-Each sample takes an initial pose from the sampler, runs ISF, checks the fitted
-gripper for collisions (:class:`isf.collision.checker.CollisionChecker`) and reports the
-outcome back to the sampler, which uses it to guide the next proposal (the regret
-bandit does; the uniform sampler ignores it).
+:func:`plan` is the paper's loop: the sampler proposes an initial state (guided sampling, line 4),
+ISF fits the gripper from it and the fitted gripper is checked for collisions
+(:class:`isf.collision.checker.CollisionChecker`) (line 5), and the outcome goes back to the
+sampler (line 6), which uses it to guide the next proposal (the regret bandit does; the uniform
+sampler ignores it). ISF is Algorithm 2: :func:`isf.fit`, the compiled engine
+(:class:`isf.fitting.engine.LockstepFitter`), checked against the plain-Python reference
+:func:`isf.fitting.reference.fit`, whose IPFO is Algorithm 1 (:func:`isf.fitting.reference.ipfo`).
 
-By default the samples run one after another, as in the paper's loop: propose, fit,
-check, observe. With ``batch_size > 1`` up to ``batch_size`` samples are fitted at once,
-in lockstep (:class:`isf.fitting.engine.LockstepFitter`): each keeps its own ISF state and stop
-rule, and a finished sample is checked, reported to the sampler and replaced by a new
-proposal straight away, so the sampler learns from every outcome with a delay of at most
-``batch_size - 1`` samples. A sampler may hold fewer in flight
-(:meth:`isf.Sampler.in_flight_limit`; the regret sampler does while it explores). The ISF
-rounds are compiled (:mod:`isf.fitting.engine_kernel`), so a batch no longer saves time; it is
-there for samplers that propose in batches.
+The loop keeps up to a window of samples in flight (proposed, not yet observed); by default the
+window is one sample, which is the paper's loop: propose, fit, check, observe. Two evaluators run
+the samples in flight (:mod:`isf.planning._evaluation`); the loop is the same for both:
 
-With ``workers = W > 1`` the samples run on W threads (the compiled fitting, checking and
-repair release Python's GIL, so the threads share the cores): each thread fits, checks and
-repairs one sample at a time (:class:`isf.planning._evaluation.SampleWorker`). Samples are proposed in
-order with at most ``SAMPLES_PER_WORKER * W`` in flight (``2W``), and their outcomes are
-reported to the sampler in order, so sample ``i + 2W`` is proposed once sample ``i`` is
-observed: the sampler learns every outcome at most ``2W - 1`` samples late, and the plan
-depends on W and the seed but not on the threads' timing. The window is twice the threads so
-that a thread whose sample ended early takes the next one instead of waiting for a slower
-sample ahead of it to be observed. Each fit is the fit it would be alone.
+* ``batch_size = B > 1``: up to B samples are fitted at once in lockstep in the calling thread
+  (:class:`isf.fitting.engine.LockstepFitter`): each keeps its own ISF state and stop rule, and a
+  finished sample is checked, reported to the sampler and replaced by a new proposal straight
+  away, so the sampler learns from every outcome with a delay of at most ``B - 1`` samples. The
+  ISF rounds are compiled (:mod:`isf.fitting.engine_kernel`), so a batch does not save time; it
+  is there for samplers that propose in batches.
+* ``workers = W > 1``: the samples run on W threads (the compiled fitting, checking and repair
+  release Python's GIL, so the threads share the cores), each thread fitting, checking and
+  repairing one sample at a time (:class:`isf.planning._evaluation.SampleWorker`). The window
+  is ``SAMPLES_PER_WORKER * W`` (``2W``) and outcomes are reported in the order the samples
+  were proposed, so sample ``i + 2W`` is proposed once sample ``i`` is observed: the plan
+  depends on W and the seed but not on the threads' timing. The window is twice the threads so
+  that a thread whose sample ended early takes the next one instead of waiting for a slower
+  sample ahead of it to be observed.
+
+A sampler may hold fewer in flight (:meth:`isf.Sampler.in_flight_limit`; the regret sampler
+does while it explores). Each fit is the fit it would be alone.
 
 A fitted grasp that collides is repaired once (``repair_collisions``, on by default;
 :mod:`isf.repair.clearance`): the links that penetrate are pushed out while the contact surfaces
@@ -37,25 +42,22 @@ touches the object, then by mean point-to-plane distance (lower first).
 
 from __future__ import annotations
 
-import queue
 import time
-from collections import deque
 from collections.abc import Callable, Sequence
-from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from ..repair.clearance import RepairConfig
 from ..collision.checker import CollisionReport, Plane
 from ..config import FitConfig
-from ._evaluation import SampleJudge, SampleWorker
-from ..gripper.model import Gripper
 from ..fitting.engine import LockstepFitter
+from ..gripper.model import Gripper
 from ..object.surface import ObjectSurface
+from ..repair.clearance import RepairConfig
 from ..result import FitResult
 from ..samplers import Outcome, Proposal, Sampler, get_sampler
+from ._evaluation import LockstepEvaluations, SampleJudge, SampleWorker, ThreadedEvaluations
 from ._working_surface import resolve_spacing, working_surface
 
 __all__ = ["Grasp", "PlanResult", "PlanStats", "plan"]
@@ -69,7 +71,8 @@ SAMPLES_PER_WORKER = 2
 docstring)."""
 
 NO_CONTACT_ERROR = 0.05
-"""Error reported to samplers for a fit where some contact surface does not touch the object, metres."""
+"""Error reported to samplers for a fit where some contact surface does not touch the object,
+metres."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -192,6 +195,22 @@ def _slots(sampler: Sampler, batch_size: int) -> int:
     return batch_size if limit is None else max(1, min(batch_size, int(limit)))
 
 
+def _check_arguments(samples, batch_size, workers, repair_collisions) -> None:
+    """Raise InvalidInputError for the arguments of :func:`plan` it rejects (see there)."""
+    from ..exceptions import InvalidInputError
+
+    for name, value in (("samples", samples), ("batch_size", batch_size), ("workers", workers)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+            raise InvalidInputError(f"{name} must be a positive integer, got {value!r}")
+    if workers > 1 and batch_size > 1:
+        raise InvalidInputError(f"batch_size={batch_size} and workers={workers}: choose lockstep "
+                                "batches or worker threads, not both (set one of them to 1)")
+    if not isinstance(repair_collisions, (bool, RepairConfig)):
+        raise InvalidInputError(
+            f"repair_collisions must be True, False or an isf.RepairConfig, got "
+            f"{type(repair_collisions).__name__}; pass e.g. isf.RepairConfig(iterations=10)")
+
+
 def plan(
     gripper: Gripper | str | Path,
     obj: ObjectSurface | str | Path | np.ndarray,
@@ -208,11 +227,17 @@ def plan(
     working_spacing: float | str | None = "auto",
     progress: Callable[[int, int, Grasp], None] | None = None,
 ) -> PlanResult:
-    """Plan grasps of an object with a gripper (Algorithm 3).
+    """Plan grasps of an object with a gripper (Algorithm 3): propose, fit, check, observe.
+
+    The loop below is the paper's (its line numbers in the comments); ISF is :func:`isf.fit`
+    (the compiled engine, checked against :func:`isf.fitting.reference.fit`, Algorithm 2, whose
+    IPFO is :func:`isf.fitting.reference.ipfo`, Algorithm 1). The samples in flight run in
+    lockstep in this thread or on worker threads (see the module docstring): the same loop.
 
     Args:
         gripper: a :class:`Gripper`, a bundled gripper name or a URDF path.
-        obj: an :class:`ObjectSurface`, a mesh or point-cloud path, or an (N, 3)/(N, 6) array (metres).
+        obj: an :class:`ObjectSurface`, a mesh or point-cloud path, or an (N, 3)/(N, 6) array
+            (metres).
         samples: number of samples ``K_s`` to evaluate.
         sampler: a registered sampler name (see :func:`isf.available_samplers`), class or instance.
         seed: seed of the run's random generator; the same seed gives the same result.
@@ -223,13 +248,13 @@ def plan(
             docstring); 1 is the paper's loop.
         workers: threads that fit, check and repair samples side by side (see the module
             docstring); 1 (default) plans in the calling thread. Exclusive with ``batch_size > 1``.
-        repair_collisions: when a fitted grasp collides, run :func:`isf.repair.clearance.repair_penetration`
-            on it (links pushed out of the object and obstacles while the contact surfaces are
-            pulled back onto the object) and keep the repaired grasp if the re-check finds it
-            collision-free. Its time counts as fit time, its re-check as collision time. False
-            gives the paper's Algorithm 3. A :class:`isf.RepairConfig` repairs with
-            those parameters (True: the defaults, measured against other settings in
-            docs/hands.md).
+        repair_collisions: when a fitted grasp collides, run
+            :func:`isf.repair.clearance.repair_penetration` on it (links pushed out of the object
+            and obstacles while the contact surfaces are pulled back onto the object) and keep
+            the repaired grasp if the re-check finds it collision-free. Its time counts as fit
+            time, its re-check as collision time. False gives the paper's Algorithm 3. A
+            :class:`isf.RepairConfig` repairs with those parameters (True: the defaults,
+            measured against other settings in docs/hands.md).
         progress: called after each sample as ``progress(done, total, grasp)``.
 
     Returns:
@@ -243,28 +268,18 @@ def plan(
             sampler proposed an invalid pose or joint vector.
         GripperDescriptionError, ObjectLoadError, SamplerNotFound: bad gripper, object or sampler.
     """
-    from ..exceptions import InvalidInputError
     from ..gripper.loading import load_gripper
     from ..object.loading import load_object
 
     started = time.perf_counter()
-    for name, value in (("samples", samples), ("batch_size", batch_size), ("workers", workers)):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-            raise InvalidInputError(f"{name} must be a positive integer, got {value!r}")
-    if workers > 1 and batch_size > 1:
-        raise InvalidInputError(f"batch_size={batch_size} and workers={workers}: choose lockstep "
-                                "batches or worker threads, not both (set one of them to 1)")
-    if not isinstance(repair_collisions, (bool, RepairConfig)):
-        raise InvalidInputError(
-            f"repair_collisions must be True, False or an isf.RepairConfig, got "
-            f"{type(repair_collisions).__name__}; pass e.g. isf.RepairConfig(iterations=10)")
+    _check_arguments(samples, batch_size, workers, repair_collisions)
     config = FitConfig() if config is None else config
     gripper = gripper if isinstance(gripper, Gripper) else load_gripper(gripper)
     obj = obj if isinstance(obj, ObjectSurface) else load_object(obj)
     obj = working_surface(obj, resolve_spacing(working_spacing, gripper))
     sampler = get_sampler(sampler)
     rng = np.random.default_rng(seed)
-    sampler.reset(obj, gripper, rng)
+    sampler.reset(obj, gripper, rng)  # line 2: the sampler's state (centres, regret, trials)
     options = dict(obstacles=obstacles, tolerance=collision_tolerance, repair=repair_collisions)
 
     grasps: list[Grasp] = []
@@ -280,16 +295,27 @@ def plan(
         return Outcome(proposal, error=error, collision_free=report.collision_free)
 
     if workers == 1:
-        judges = [SampleJudge(gripper, obj, config, **options)]
-        fitter = LockstepFitter(gripper, obj, config)
-        setup_time = time.perf_counter() - started
-        fit_time = _in_lockstep(sampler, rng, samples, batch_size, fitter, judges[0], record)
+        evaluations = LockstepEvaluations(LockstepFitter(gripper, obj, config),
+                                          SampleJudge(gripper, obj, config, **options), batch_size)
     else:
-        judges = [SampleWorker(gripper, obj, config, **options) for _ in range(workers)]
-        setup_time = time.perf_counter() - started
-        _in_threads(sampler, rng, samples, judges, record)
-        fit_time = 0.0
-    fit_time += sum(j.fit_time for j in judges)
+        evaluations = ThreadedEvaluations(
+            [SampleWorker(gripper, obj, config, **options) for _ in range(workers)],
+            SAMPLES_PER_WORKER * workers)
+    setup_time = time.perf_counter() - started
+
+    with evaluations:
+        proposed = 0
+        while len(grasps) < samples:  # line 3: K_s samples
+            window = evaluations.window
+            while proposed < samples and proposed - len(grasps) < _slots(sampler, window):
+                (proposal,) = sampler.propose(1, rng)  # line 4: guided sampling
+                evaluations.start(proposed, proposal)  # line 5: ISF, then the collision check
+                proposed += 1
+            outcomes = [record(*evaluated) for evaluated in evaluations.finished()]
+            if outcomes:
+                sampler.observe(outcomes)  # line 6: the regret update
+    judges = evaluations.judges
+    fit_time = evaluations.fit_time + sum(j.fit_time for j in judges)
     collision_time = sum(j.collision_time for j in judges)
 
     grasps.sort(key=Grasp.sort_key)
@@ -305,58 +331,3 @@ def plan(
     return PlanResult(tuple(grasps), stats, gripper.name, obj.name, sampler.name, seed, config,
                       None if repairer is None else repairer.config)
 
-
-def _in_lockstep(sampler: Sampler, rng: np.random.Generator, samples: int, batch_size: int,
-                 fitter: LockstepFitter, judge: SampleJudge, record: Callable) -> float:
-    """The samples in one thread, up to ``batch_size`` fitted in lockstep, each observed as soon
-    as it finishes; returns the seconds spent fitting."""
-    proposals: dict[int, Proposal] = {}
-    done, fit_time = 0, 0.0
-    while done < samples:
-        while fitter.n_active < _slots(sampler, batch_size) and len(proposals) + done < samples:
-            (proposal,) = sampler.propose(1, rng)
-            index = len(proposals) + done
-            fitter.add(index, proposal.T_object_gripper, proposal.q)
-            proposals[index] = proposal
-        t0 = time.perf_counter()
-        finished = fitter.advance()
-        fit_time += time.perf_counter() - t0
-        outcomes = [record(index, proposals.pop(index), *judge.judge(result))
-                    for index, result in sorted(finished, key=lambda item: item[0])]
-        done += len(outcomes)
-        if outcomes:
-            sampler.observe(outcomes)
-    return fit_time
-
-
-def _in_threads(sampler: Sampler, rng: np.random.Generator, samples: int,
-                workers: list[SampleWorker], record: Callable) -> None:
-    """The samples on ``len(workers)`` threads: proposed in order, at most
-    :data:`SAMPLES_PER_WORKER` per worker in flight, and observed in order, so the sampler sees
-    what it would see with that window whatever the threads' timing."""
-    idle: queue.SimpleQueue[SampleWorker] = queue.SimpleQueue()
-    for worker in workers:
-        idle.put(worker)
-
-    def evaluate(proposal: Proposal):
-        worker = idle.get()  # never waits: no more tasks run than there are workers
-        try:
-            return worker.evaluate(proposal.T_object_gripper, proposal.q)
-        finally:
-            idle.put(worker)
-
-    pending: deque[tuple[int, Proposal, Future]] = deque()
-    proposed = 0
-    with ThreadPoolExecutor(len(workers), thread_name_prefix="isf-plan") as pool:
-        try:
-            while pending or proposed < samples:
-                while proposed < samples and len(pending) < _slots(
-                        sampler, SAMPLES_PER_WORKER * len(workers)):
-                    (proposal,) = sampler.propose(1, rng)
-                    pending.append((proposed, proposal, pool.submit(evaluate, proposal)))
-                    proposed += 1
-                index, proposal, future = pending.popleft()
-                sampler.observe([record(index, proposal, *future.result())])
-        finally:
-            for *_, future in pending:
-                future.cancel()

@@ -1,6 +1,23 @@
-"""Registering a stock gripper URDF: tag its contact surfaces in a copy and show the selection (``isf tag``).
+"""Registering a stock gripper URDF (``isf tag``): suggest its contact surfaces and approach,
+write a tagged copy and show what every tag selects.
+
+``spec`` holds :class:`ContactSpec` (one ``<isf:contact>`` to write), ``suggestion`` proposes
+contacts and the approach from the kinematic tree and the fingertip geometry, ``urdf_editing``
+writes the copy (:func:`tag_urdf`) and ``preview`` describes the result (:class:`TagPreview`).
 """
 
-from .tagging import ContactSpec, RegistrationError, SurfacePreview, TagPreview, suggest_approach, suggest_contacts, tag_urdf
+from ..exceptions import RegistrationError
+from .preview import SurfacePreview, TagPreview
+from .spec import ContactSpec
+from .suggestion import suggest_approach, suggest_contacts
+from .urdf_editing import tag_urdf
 
-__all__ = ["ContactSpec", "RegistrationError", "SurfacePreview", "TagPreview", "suggest_approach", "suggest_contacts", "tag_urdf"]
+__all__ = [
+    "ContactSpec",
+    "RegistrationError",
+    "SurfacePreview",
+    "TagPreview",
+    "suggest_approach",
+    "suggest_contacts",
+    "tag_urdf",
+]

@@ -10,8 +10,8 @@ starts from its previous answer (exact either way, it only bounds the search).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from ..compiled.kernels import kernel
 from ..fitting.correspondence import filter_pairs
 from ..fitting.engine_kernel import row_dot
 from ..fitting.moment_kernels import link_poses, place
@@ -20,7 +20,7 @@ from ..search.nearest import nearest_point, search_scratch
 __all__ = ["contact_pairs"]
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@kernel
 def contact_pairs(T, R, p, contact, surface_starts, obj, guess, outlier_factor, outlier_floor,
                   cos_limit):
     """The contact points at a state, and those that match the object.

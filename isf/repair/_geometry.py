@@ -22,8 +22,8 @@ from typing import NamedTuple
 import numpy as np
 import trimesh
 
-from ..collision.surface_distance import TangentPlanes, closed_mesh, mesh_memo
 from ..collision.convex_elements import ConvexElements
+from ..collision.surface_distance import TangentPlanes, closed_mesh, mesh_memo
 from ..gripper.model import Gripper
 from ..object.surface import ObjectSurface
 from ..search.point_grid import PointGrid

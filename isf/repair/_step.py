@@ -14,14 +14,14 @@ threads repairing side by side overlap.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from ..compiled.kernels import kernel
 from ..fitting.moment_kernels import link_poses
 
 __all__ = ["motion_rows", "step_qp", "to_object"]
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@kernel
 def to_object(T, R, p, owner, local):
     """Object-frame positions (M, 3) of points ``local`` (M, 3) given in the frames of links
     ``owner`` (M,), whose rotations ``R`` (L, 3, 3) and origins ``p`` (L, 3) are in the gripper
@@ -36,7 +36,7 @@ def to_object(T, R, p, owner, local):
     return out
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@kernel
 def motion_rows(T, R, p, J, owner, local, centre, normals):
     """Rows ``n^T A`` (M, 6 + n) of points ``local`` (M, 3) of links ``owner`` (M,) along
     object-frame directions ``normals`` (M, 3).
@@ -75,7 +75,7 @@ def motion_rows(T, R, p, J, owner, local, centre, normals):
     return rows
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@kernel
 def step_qp(contact_rows, residual, clearance_rows, violation, element, unit, regularisation,
             contact_weight, slack_weight, palm_step, joint_lower, joint_upper):
     """The step's QP ``min 1/2 z^T H z + f^T z, lo <= A z <= hi`` over ``z = (x_mm, s)``.

@@ -53,7 +53,8 @@ since a turning link rises faster than its linearisation) is shortened to the se
 brings that row to zero, when the shorter step is within ``tolerance``.
 The best state visited is returned: least penetration first, then the smallest contact residual.
 Units inside the QP are millimetres. Each QP is small and dense (tens of variables, a hundred or so
-rows) and is solved exactly by :func:`isf.repair.dense_qp.solve_dense_qp`, with OSQP as the fallback.
+rows) and is solved exactly by a dual active-set method (``QP_SOLVER``), with OSQP as the
+fallback.
 The gripper samples, convex elements and the dense object surface are prepared once and cached
 (``isf.repair._geometry``), so a repairer is cheap to build again for the same gripper and mesh.
 """
@@ -73,18 +74,18 @@ from ..collision.checker import Plane, checked_state, object_voxels
 from ..collision.surface_distance import NEIGHBOURS
 from ..collision.voxels import kernel_arrays
 from ..config import FitConfig
-from .dense_qp import solve_dense_qp
 from ..exceptions import ConfigError, GripperDescriptionError
-from ..gripper.model import Gripper
 from ..fitting.engine import score_fit
+from ..fitting.segments import Segments
+from ..gripper.model import Gripper
 from ..object.surface import ObjectSurface
-from ._contacts import contact_pairs
-from ._geometry import gripper_side, object_side
-from .rows import deepest_rows, sample_rows
-from ._step import motion_rows, step_qp, to_object
 from ..result import FitResult
 from ..se3 import exp_so3
-from ..fitting.segments import Segments
+from ._contacts import contact_pairs
+from ._geometry import gripper_side, object_side
+from ._step import motion_rows, step_qp, to_object
+from .dense_qp import solve_dense_qp
+from .rows import DensePlanes, RowLimits, deepest_rows, sample_rows
 
 __all__ = ["ClearanceRepair", "RepairConfig", "RepairResult", "repair_penetration"]
 
@@ -94,7 +95,73 @@ _MM = 1000.0  # QP length unit: millimetres per metre
 _CONVEX_REACH = 0.003  # object points this close to a convex element (beyond its floor) get rows, m
 _OUTLIER_FACTOR = 3.0  # pull mode: pairs farther than this times the median distance are dropped
 _BOUND_SLACK = 1e-12  # rounding allowance on the bounds of a sample's violation, m
-_NO_CONTACT = (np.empty((0, 3)), np.empty((0, 3)), np.empty((0, 3)), np.empty(0, dtype=int))
+
+QP_SOLVER = "dense_qp"
+"""The exact solver of the step's QP: ``"dense_qp"`` (:func:`isf.repair.dense_qp.solve_dense_qp`)
+or ``"daqp"`` (the ``daqp`` package, the same method; its answers differ from dense_qp's in the
+last bits, so the grasps it gives are not bit for bit those of dense_qp; measured in
+``bench/bench_repair_qp.py``)."""
+DAQP_PRIMAL_TOLERANCE = 1e-12
+"""daqp's primal feasibility tolerance (its default, 1e-6, leaves rows violated by up to
+2.5e-10 mm on the repair's QPs, where dense_qp's violations stay below 1.2e-13 mm; at this
+tolerance daqp's stay below dense_qp's at no measurable cost, ``bench/bench_repair_qp.py``)."""
+_DAQP_OPTIMAL = (1, 2)  # daqp's exit flags of an optimal solution (2: one of several)
+
+
+class _Contact(NamedTuple):
+    """The contact points kept on (or drawn to) the object, K of them, object frame."""
+
+    points: np.ndarray
+    """(K, 3), m."""
+    plane_points: np.ndarray
+    """Their object points, (K, 3), m."""
+    plane_normals: np.ndarray
+    """Those points' outward unit normals, (K, 3)."""
+    index: np.ndarray
+    """Their indices among the gripper's contact points, (K,)."""
+
+
+_NO_CONTACT = _Contact(np.empty((0, 3)), np.empty((0, 3)), np.empty((0, 3)), np.empty(0, dtype=int))
+
+
+class _Frames(NamedTuple):
+    """Frames of the gripper at joints ``q``, F of them, gripper frame."""
+
+    rotations: np.ndarray
+    """(F, 3, 3)."""
+    positions: np.ndarray
+    """(F, 3), m."""
+    jacobians: np.ndarray
+    """Frame Jacobians, linear rows first, (F, 6, n_joints)."""
+
+
+class _Best(NamedTuple):
+    """The best state a repair has visited."""
+
+    score: tuple[float, float]
+    """(penetration beyond the tolerance, m; mean contact residual, m), compared in order."""
+    T: np.ndarray
+    """Palm pose, (4, 4)."""
+    q: np.ndarray
+    """Joints, (n_joints,)."""
+    depth: float
+    """Deepest violation, m."""
+
+
+class _Previous(NamedTuple):
+    """A repair step taken: the state before it, the step and its centre, and the deepest
+    violation before it."""
+
+    T: np.ndarray
+    """Palm pose before the step, (4, 4)."""
+    q: np.ndarray
+    """Joints before the step, (n_joints,)."""
+    x: np.ndarray
+    """The step ``(v, w, dq)``, SI units."""
+    centre: np.ndarray
+    """The centre of its rotation, object frame, (3,), m."""
+    worst: float
+    """Deepest violation before it, m."""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -264,10 +331,12 @@ class ClearanceRepair:
             np.where(revolute, cfg.max_joint_step, cfg.max_translation_step * _MM)])
 
     # ------------------------------------------------------------ kinematics
-    def _frame_jacobians(self, q: np.ndarray, frames: np.ndarray):
-        """Rotations (F, 3, 3), origins (F, 3) and Jacobians (F, 6, n) of frames, gripper frame."""
+    def _frame_jacobians(self, q: np.ndarray, frames: np.ndarray) -> _Frames:
+        """The frames ``frames`` at joints ``q`` (n_joints,)."""
         k = self.gripper.frame_kinematics_many(q[None], frames)
-        return k.rotations[0], k.positions[0], np.concatenate([k.J_linear[0], k.J_angular[0]], axis=1)
+        (rotations,), (positions,) = k.rotations, k.positions
+        (J_linear,), (J_angular,) = k.J_linear, k.J_angular
+        return _Frames(rotations, positions, np.concatenate([J_linear, J_angular], axis=1))
 
     # ------------------------------------------------------------ object side
     def _sample_rows(self, world: np.ndarray, guess: np.ndarray, floor: np.ndarray,
@@ -303,11 +372,13 @@ class ClearanceRepair:
         reach = cfg.activation + cfg.margin + 2.0 * obj.spacing
         planes = self._planes
         planes.note_searches(len(world))
+        limits = RowLimits(len(self.gripper.geometries), cfg.activation, cfg.max_rows,
+                           _BOUND_SLACK, reach)
         return sample_rows(
             np.ascontiguousarray(world, dtype=np.float64), guess, floor, element, known.violation,
-            known.element, len(self.gripper.geometries), cfg.activation, cfg.max_rows,
-            _BOUND_SLACK, reach, (obj.points, obj.normals, obj.search.tree), self._voxel_arrays,
-            (planes.points, planes.normals, planes.tree.tree, min(NEIGHBOURS, len(planes.points))),
+            known.element, limits, (obj.points, obj.normals, obj.search.tree), self._voxel_arrays,
+            DensePlanes(planes.points, planes.normals, planes.tree.tree,
+                        min(NEIGHBOURS, len(planes.points))),
             self._resampled)
 
     def penetration(self, T_object_gripper: np.ndarray, q: np.ndarray) -> float:
@@ -351,18 +422,18 @@ class ClearanceRepair:
         self._sample_guess[:] = -1  # the samples' searches start from their last answers
         before = held = None
         last = np.inf  # contact residual of the previous step
-        best = ((np.inf, np.inf), T, q, np.inf)
+        best = _Best((np.inf, np.inf), T, q, np.inf)
         steps = 0
-        previous = None  # (state, step, centre, deepest violation) before the last step
+        previous = None  # the last step taken (_Previous)
         for steps in range(cfg.iterations + 1):
             R, p, J = self._frame_jacobians(q, self._frames)
             rows = self._violations(T, R, p)
             worst = float(rows.violation.max()) if len(rows.violation) else -np.inf
-            if previous is not None and previous[3] > cfg.tolerance and -np.inf < worst < 0.0:
+            if previous is not None and previous.worst > cfg.tolerance and -np.inf < worst < 0.0:
                 # the exact step overshot the floor (a turning link rises faster than its
                 # linearisation): try the fraction of it that brings the deepest row to zero
-                (T0, q0), x0, centre0, worst0 = previous
-                T1, q1 = self._apply(T0, q0, worst0 / (worst0 - worst) * x0, centre0)
+                fraction = previous.worst / (previous.worst - worst)
+                T1, q1 = self._apply(previous.T, previous.q, fraction * previous.x, previous.centre)
                 R1, p1, J1 = self._frame_jacobians(q1, self._frames)
                 rows1 = self._violations(T1, R1, p1)
                 if len(rows1.violation) and rows1.violation.max() <= cfg.tolerance:
@@ -372,14 +443,14 @@ class ClearanceRepair:
             before = depth if before is None else before
             links = None if contacts == "none" else self._frame_jacobians(q, self._contact_frames)
             if contacts == "hold" and held is None:  # the held points: those touching at the start
-                held = self._contact_rows(T, q, links)[3]
+                held = self._contact_rows(T, q, links).index
             contact = _NO_CONTACT if contacts == "none" else \
                 self._contact_rows(T, q, links, held, pull=contacts == "pull")
-            gaps = np.einsum("ij,ij->i", contact[0] - contact[1], contact[2])
+            gaps = np.einsum("ij,ij->i", contact.points - contact.plane_points, contact.plane_normals)
             residual = float(np.abs(gaps).mean()) if len(gaps) else 0.0
             score = (max(depth - cfg.tolerance, 0.0), residual)
-            if score < best[0]:
-                best = (score, T, q, depth)
+            if score < best.score:
+                best = _Best(score, T, q, depth)
             # pull mode goes on while the contacts still improve by a tenth of the tolerance
             settled = depth <= cfg.tolerance and (
                 contacts != "pull" or residual >= last - cfg.tolerance / 10)
@@ -387,19 +458,19 @@ class ClearanceRepair:
                 break
             last = residual
             active = self._active_rows(rows.violation, rows.element)
-            if not len(active) and not len(contact[0]):
+            if not len(active) and not len(contact.points):
                 break  # no row near its floor and no contact to pull: no step to take
             owner, local = rows.owner[active], rows.local[active]
-            centre = contact[0].mean(axis=0) if len(contact[0]) else \
+            centre = contact.points.mean(axis=0) if len(contact.points) else \
                 to_object(T, R, p, owner, local).mean(axis=0)
             c_rows = self._contact_jacobian_rows(T, contact, centre, links)
             a_rows = motion_rows(T, R, p, J, owner, local, centre, rows.normal[active])
             x = self._solve(c_rows, gaps, a_rows, rows.violation[active], rows.element[active], q)
             if x is None:
                 break
-            previous = ((T, q), x, centre, worst)
+            previous = _Previous(T, q, x, centre, worst)
             T, q = self._apply(T, q, x, centre)
-        return RepairResult(best[1], best[2], float(before or 0.0), float(best[3]), steps)
+        return RepairResult(best.T, best.q, float(before or 0.0), float(best.depth), steps)
 
     def _near_samples(self, T: np.ndarray, R: np.ndarray, p: np.ndarray) -> np.ndarray:
         """Indices of the gripper samples of elements that may be within ``activation`` of the
@@ -456,8 +527,8 @@ class ClearanceRepair:
         return deepest_rows(violation, element, len(self.gripper.geometries), cfg.activation,
                             cfg.max_rows)
 
-    def _contact_rows(self, T: np.ndarray, q: np.ndarray, links: tuple,
-                      held: np.ndarray | None = None, pull: bool = False):
+    def _contact_rows(self, T: np.ndarray, q: np.ndarray, links: _Frames,
+                      held: np.ndarray | None = None, pull: bool = False) -> _Contact:
         """Contact points kept on (or drawn to) the object, with their nearest object planes.
 
         Args:
@@ -471,16 +542,16 @@ class ClearanceRepair:
                 whose normals face the object normal.
 
         Returns:
-            (object-frame points (K, 3), plane points (K, 3), plane normals (K, 3), indices (K,)).
+            the kept points (:class:`_Contact`).
         """
         cfg, g, obj = self.config, self.gripper, self.object
         if pull and held is None:  # each surface on its own: a pad that lost contact is drawn back
             source, points, target = contact_pairs(
-                T, links[0], links[1], self._contact, self._surfaces.starts,
+                T, links.rotations, links.positions, self._contact, self._surfaces.starts,
                 (obj.points, obj.normals, obj.search.tree), self._contact_guess, _OUTLIER_FACTOR,
                 cfg.contact_reach, self._cos_limit)
             target = target[source]
-            return points[source], obj.points[target], obj.normals[target], source
+            return _Contact(points[source], obj.points[target], obj.normals[target], source)
         points, normals = g.contact_points(q)
         points = points @ T[:3, :3].T + T[:3, 3]
         normals = normals @ T[:3, :3].T
@@ -489,17 +560,17 @@ class ClearanceRepair:
             cos = np.einsum("ij,ij->i", normals, obj.normals[idx])
             facing = cos <= -np.cos(cfg.max_normal_angle)
             held = np.flatnonzero((dist <= cfg.contact_reach) & facing)
-        return points[held], obj.points[idx[held]], obj.normals[idx[held]], held
+        return _Contact(points[held], obj.points[idx[held]], obj.normals[idx[held]], held)
 
     def _contact_jacobian_rows(self, T, contact, centre, links):
         """Rows ``m^T A`` (K, 6 + n) of the kept contact points (``links`` as for
         :meth:`_contact_rows`)."""
         g = self.gripper
-        _, _, plane_n, sel = contact
+        sel = contact.index
         if not len(sel):
             return np.empty((0, 6 + g.n_joints))
-        R, p, J = links
-        return motion_rows(T, R, p, J, g.point_link[sel], g.points_link[sel], centre, plane_n)
+        return motion_rows(T, links.rotations, links.positions, links.jacobians, g.point_link[sel],
+                           g.points_link[sel], centre, contact.plane_normals)
 
     def _qp(self, c_rows, gaps, a_rows, violation, element, q):
         """The step's QP ``min 1/2 z^T H z + f^T z, lo <= A z <= hi`` over ``z = (x_mm, s)``
@@ -520,16 +591,13 @@ class ClearanceRepair:
     def _solve(self, c_rows, gaps, a_rows, violation, element, q) -> np.ndarray | None:
         """One QP step ``x = (v, w, dq)`` in SI units, or None when no solver finds one.
 
-        The QP is solved exactly by :func:`isf.repair.dense_qp.solve_dense_qp`; OSQP is the fallback
-        should that report anything but success.
+        The QP is solved exactly by ``QP_SOLVER``; OSQP is the fallback should that report
+        anything but success (e.g. infeasible rows).
         """
         H, f, A, lower, upper, scale = self._qp(c_rows, gaps, a_rows, violation, element, q)
         nx = len(scale)
-        result = solve_dense_qp(H, f, A, lower, upper)
-        if result.status == "solved":
-            z = result.x
-        else:
-            logger.debug("dense clearance QP: %s; falling back to OSQP", result.status)
+        z = _solve_exact(H, f, A, lower, upper)
+        if z is None:
             z = _solve_osqp(H, f, A, lower, upper)
             if z is None:
                 return None
@@ -546,6 +614,25 @@ class ClearanceRepair:
         T_new[:3, :3] = Rw @ T[:3, :3]
         T_new[:3, 3] = Rw @ (T[:3, 3] - centre) + centre + x[:3]
         return T_new, g.clip(q + x[6:])
+
+
+def _solve_exact(H, f, A, lower, upper) -> np.ndarray | None:
+    """The exact answer of ``QP_SOLVER`` to ``min 1/2 z^T H z + f^T z, lower <= A z <=
+    upper``, or None when it reports anything but an optimum (logged)."""
+    if QP_SOLVER == "daqp":
+        import daqp
+
+        z, _, flag, _ = daqp.solve(H, f, A, upper, lower, primal_tol=DAQP_PRIMAL_TOLERANCE)
+        if flag in _DAQP_OPTIMAL:
+            return z
+        logger.debug("clearance QP: daqp exit flag %d (-1: infeasible); falling back to OSQP",
+                     flag)
+        return None
+    result = solve_dense_qp(H, f, A, lower, upper)
+    if result.status == "solved":
+        return result.x
+    logger.debug("clearance QP: dense_qp %s; falling back to OSQP", result.status)
+    return None
 
 
 def _solve_osqp(H, f, A, lower, upper) -> np.ndarray | None:

@@ -25,9 +25,9 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
-import numba
 import numpy as np
 
+from ..compiled.kernels import kernel
 from ..exceptions import InvalidInputError
 
 __all__ = ["DenseQPResult", "solve_dense_qp"]
@@ -106,7 +106,7 @@ def solve_dense_qp(H: np.ndarray, c: np.ndarray, A: np.ndarray | None = None,
     return DenseQPResult(x, y, _STATUS[code], int(steps))
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(error_model="python")
 def _dual_active_set(H, c, A, l, u, tol, max_iter):  # pragma: no cover - compiled
     """Goldfarb-Idnani on ``l <= A x <= u``; returns ``(x, y, status, steps)``.
 
@@ -297,7 +297,7 @@ def _dual_active_set(H, c, A, l, u, tol, max_iter):  # pragma: no cover - compil
                 _rotate(G, j, j + 1, cs, sn)
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(error_model="python")
 def _rotate(G, i, j, cs, sn):  # pragma: no cover - compiled
     """Rotate rows ``i`` and ``j`` of ``G`` in place: ``(cs g_i + sn g_j, -sn g_i + cs g_j)``."""
     for k in range(G.shape[1]):

@@ -10,18 +10,49 @@
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
-from numba import njit
 
 from ..collision.surface_distance import plane_estimates
 from ..collision.voxels import boxes_clear, points_distance_below
+from ..compiled.kernels import kernel
 from ..fitting.engine_kernel import plane_distance
-from ..search.nearest import nearest_with_guesses
+from ..search.nearest import SearchArrays, nearest_with_guesses
 
-__all__ = ["deepest_rows", "sample_rows", "undecided"]
+__all__ = ["DensePlanes", "RowLimits", "deepest_rows", "sample_rows", "undecided"]
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+class RowLimits(NamedTuple):
+    """Which clearance rows :func:`sample_rows` keeps."""
+
+    n_elements: int
+    """The gripper's geometry elements (as for :func:`deepest_rows`)."""
+    activation: float
+    """Rows more than this below their floor are never used, m (as for :func:`deepest_rows`)."""
+    max_rows: int
+    """Rows used per element at most (as for :func:`deepest_rows`)."""
+    slack: float
+    """Rounding allowance of the violation bounds, m."""
+    reach: float
+    """Samples farther than this from the object and outside it get no row, m."""
+
+
+class DensePlanes(NamedTuple):
+    """The dense tangent planes of the object (:class:`isf.collision.surface_distance.TangentPlanes`),
+    P points."""
+
+    points: np.ndarray
+    """(P, 3) float64, m."""
+    normals: np.ndarray
+    """Outward unit normals, (P, 3) float64."""
+    tree: SearchArrays
+    """Their search (:attr:`isf.search.nearest.NearestPoints.tree`)."""
+    neighbours: int
+    """The tangent planes of an estimate (at most P)."""
+
+
+@kernel
 def deepest_rows(violation, element, n_elements, activation, max_rows):
     """Rows within ``activation`` of their floor, at most ``max_rows`` per element.
 
@@ -59,7 +90,7 @@ def deepest_rows(violation, element, n_elements, activation, max_rows):
     return out
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@kernel
 def undecided(bound, bound_element, violation, element, n_elements, activation, max_rows, slack):
     """Which rows of unknown violation may still be used, given rows whose violation is known.
 
@@ -95,9 +126,9 @@ def undecided(bound, bound_element, violation, element, n_elements, activation, 
     return out
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def sample_rows(world, guess, floor, element, known_violation, known_element, n_elements, activation,
-                max_rows, slack, reach, obj, voxels, planes, resampled):
+@kernel
+def sample_rows(world, guess, floor, element, known_violation, known_element, limits, obj, voxels,
+                planes, resampled):
     """The clearance rows of gripper samples against the object's tangent planes (documented at
     ``isf.repair.clearance.ClearanceRepair._sample_rows``).
 
@@ -107,12 +138,10 @@ def sample_rows(world, guess, floor, element, known_violation, known_element, n_
         guess: an object point near each sample to start its search from (M,), -1 for none
             (e.g. its nearest point one repair step before); it never changes an answer.
         known_violation, known_element: the state's other rows (K,).
-        n_elements, activation, max_rows: as for :func:`deepest_rows`.
-        slack: rounding allowance of the violation bounds, metres.
-        reach: samples farther than this from the object and outside it get no row, metres.
+        limits: the rows kept (:class:`RowLimits`).
         obj: the object's points, normals (N, 3) and :attr:`isf.search.nearest.NearestPoints.tree`.
         voxels: :func:`isf.collision.voxels.kernel_arrays` of the object's voxels.
-        planes: the dense tangent planes' points, normals (P, 3), tree and neighbour count.
+        planes: the dense tangent planes (:class:`DensePlanes`).
         resampled: the dense planes are not the object's own points.
 
     Returns:
@@ -121,11 +150,13 @@ def sample_rows(world, guess, floor, element, known_violation, known_element, n_
         and, by the voxels, outside).
     """
     obj_points, obj_normals, obj_tree = obj
+    n_elements, activation, max_rows = limits.n_elements, limits.activation, limits.max_rows
+    slack, reach = limits.slack, limits.reach
     m = len(world)
     outside = np.zeros(m, np.bool_)
     look = np.ones(m, np.bool_)
-    present, table, gaps, lo, size = voxels
-    if present:  # outside by the voxels and beyond reach by their distance bound: no row
+    table, gaps, lo, size = voxels.table, voxels.gaps, voxels.lo, voxels.size
+    if voxels.present:  # outside by the voxels and beyond reach by their distance bound: no row
         outside = boxes_clear(table, lo, size, world, world)
         below = points_distance_below(gaps, lo, size, world)
         for i in range(m):
@@ -150,7 +181,8 @@ def sample_rows(world, guess, floor, element, known_violation, known_element, n_
             n_close += 1
     close, lower = close[:n_close], lower[:n_close]
     kept_world = world[close]
-    plane_points, plane_normals, plane_tree, k = planes
+    plane_points, plane_normals, plane_tree, k = (planes.points, planes.normals, planes.tree,
+                                                  planes.neighbours)
     if resampled:  # the plane of the nearest dense point, one of the k
         # the dense points begin with the object's own: its nearest point bounds the search
         _, first = nearest_with_guesses(kept_world, nearest[close], np.inf, plane_points, plane_tree)

@@ -5,7 +5,7 @@ Samplers are found by name through the ``isf.samplers`` entry-point group
 """
 
 from .base import Outcome, Proposal, Sampler, grasp_centre, place_gripper, random_rotation
-from .regret import RegretSampler
+from .orientation import ORIENTATIONS
 from .registry import (
     ENTRY_POINT_GROUP,
     SamplerInfo,
@@ -14,7 +14,7 @@ from .registry import (
     refresh_samplers,
     register_sampler,
 )
-from .orientation import ORIENTATIONS
+from .regret import RegretSampler
 from .uniform import UniformSampler
 
 __all__ = [

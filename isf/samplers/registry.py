@@ -82,7 +82,7 @@ def _entry_points() -> Iterable[importlib.metadata.EntryPoint]:
     return importlib.metadata.entry_points(group=ENTRY_POINT_GROUP)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _discover() -> tuple[dict[str, SamplerInfo], dict[str, Any]]:
     """Read the entry points once: their infos and the entry points themselves, by name."""
     infos: dict[str, SamplerInfo] = {}
@@ -156,7 +156,7 @@ def register_sampler(name: str, cls: type[Sampler]) -> None:
     if not (isinstance(cls, type) and issubclass(cls, Sampler)):
         raise PluginLoadError(
             f"cannot register {cls!r} as sampler {name!r}: it is not a subclass of "
-            "isf.samplers.Sampler; derive it from Sampler"
+            "isf.samplers.Sampler; derive it from Sampler", name=name
         )
     if name in _registered and _registered[name] is not cls:
         logger.info("sampler %r re-registered: %r replaces %r", name, cls, _registered[name])
@@ -172,19 +172,20 @@ def _load_class(name: str) -> type[Sampler]:
         installed = ", ".join(available_samplers()) or "none"
         if not any(info.distribution == "isf" for info in infos.values()):
             installed += " (isf's own built-ins are missing: install isf, e.g. pip install -e .)"
-        raise SamplerNotFound(f"no sampler named {name!r}; installed: {installed}; {_INSTALL_HINT}")
+        raise SamplerNotFound(f"no sampler named {name!r}; installed: {installed}; {_INSTALL_HINT}",
+                              name=name, known=available_samplers())
     info = infos[name]
     try:
         obj = eps[name].load()
     except Exception as err:  # any import-time failure of third-party code
         raise PluginLoadError(
             f"sampler {name!r} ({info.value} from {info.source}) failed to load: "
-            f"{type(err).__name__}: {err}; fix or uninstall {info.distribution or 'it'}"
+            f"{type(err).__name__}: {err}; fix or uninstall {info.distribution or 'it'}", name=name
         ) from err
     if not (isinstance(obj, type) and issubclass(obj, Sampler)):
         raise PluginLoadError(
             f"sampler {name!r} ({info.value} from {info.source}) is {obj!r}, not a subclass of "
-            "isf.samplers.Sampler; point the entry point at a Sampler subclass"
+            "isf.samplers.Sampler; point the entry point at a Sampler subclass", name=name
         )
     if obj.name != name:
         warnings.warn(

@@ -3,8 +3,8 @@
 ISF, the collision checks and the repair ask for the nearest object point of a query that lies
 near the answer of an earlier query (the same contact point or gripper sample one step before).
 A k-d tree answers such a query from its root every time; a walk on the Delaunay graph starts
-at the earlier answer and is done in a step or two (about 50 ns against 200-600 ns for the
-tree on surface samples of 2000 points, measured in ``docs/benchmarks.md``).
+at the earlier answer and is done in a step or two, several times cheaper than the tree's
+search (``docs/benchmarks.md``).
 
 Why the walk finds the nearest point: if a point ``v`` is not the nearest point of a query
 ``x``, shrink the ball about ``x`` through ``v`` towards ``v``, keeping ``v`` on its boundary,
@@ -14,11 +14,10 @@ of them. So a point none of whose Delaunay neighbours is nearer is the nearest p
 
 The graph comes from Qhull (``scipy.spatial.Delaunay``) with its input joggled (option ``QJ``):
 points on a lattice (a voxel-sampled box) are co-spherical in many places, where Qhull without
-the joggle merges facets for a time that grows with the square of the point count (a 30 x 30 cm
-slab sampled every 3 mm, 32 000 points: over three minutes before we stopped it, against 2 s
-joggled). The joggle moves the points by a tiny random amount (Qhull sizes it from its
-rounding error), so the graph is the Delaunay graph of points that close to these. Hence the
-searches built on it (:func:`isf.search.nearest.nearest_point`):
+the joggle merges facets for a time that grows with the square of the point count. The
+joggle moves the points by a tiny random amount (Qhull sizes it from its rounding error), so
+the graph is the Delaunay graph of points that close to these. Hence the searches built on it
+(:func:`isf.search.nearest.nearest_point`):
 
 * a walk that meets a tie (a neighbour exactly as near as the point it stops at, which on a
   lattice the joggle may have left unconnected to a nearer point) hands the query to the k-d
@@ -45,16 +44,32 @@ tree alone.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
-from numba import njit
 from scipy.spatial import Delaunay, QhullError
 
+from ..compiled.kernels import kernel
 from .kdtree import squared_distance
 
-__all__ = ["CUTOFF_MARGIN", "FLAT", "MAX_POINTS", "NO_GRAPH", "QHULL_OPTIONS", "neighbour_graph", "walk"]
+__all__ = ["CUTOFF_MARGIN", "FLAT", "MAX_POINTS", "NO_GRAPH", "QHULL_OPTIONS", "NeighbourGraph",
+           "neighbour_graph", "walk"]
 
-NO_GRAPH = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0))
-"""``(indptr, indices, cutoff)`` of a point set without a graph."""
+
+class NeighbourGraph(NamedTuple):
+    """The Delaunay neighbours of N points (:func:`neighbour_graph`), E neighbour entries."""
+
+    indptr: np.ndarray
+    """Where each point's neighbours start in ``indices``, (N + 1,) int64 ((0,) without a graph)."""
+    indices: np.ndarray
+    """The neighbours, each point's nearest to it first, (E,) int64."""
+    cutoff: np.ndarray
+    """A quarter of the squared distance between each point and its neighbour, less
+    :data:`CUTOFF_MARGIN`, (E,) float64, m^2."""
+
+
+NO_GRAPH = NeighbourGraph(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0))
+"""The graph of a point set without one (empty arrays)."""
 
 CUTOFF_MARGIN = 1e-9
 """The cutoffs' relative margin. A neighbour is skipped only when it is farther from the
@@ -72,18 +87,17 @@ FLAT = 1e-6
 """Points whose thinnest extent is below this fraction of their widest get no graph."""
 
 MAX_POINTS = 20_000
-"""The most points a graph is built for. Qhull would take over a second for more (25-65 us per
-point), and planning matches against a working surface of a few thousand points whatever the
-object's size (:func:`isf.planning._working_surface.working_surface`)."""
+"""The most points a graph is built for. Qhull's time grows with the point count, and
+planning matches against a working surface of a few thousand points whatever the object's size
+(:func:`isf.planning._working_surface.working_surface`)."""
 
 
-def neighbour_graph(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The Delaunay neighbours of each point (N, 3): ``indptr`` (N + 1,), ``indices`` and
-    ``cutoff`` (E,); the neighbours of point ``i`` are ``indices[indptr[i]:indptr[i + 1]]``,
-    nearest to point ``i`` first, and ``cutoff[j]`` is a quarter of the squared distance (m^2)
-    between point ``i`` and its neighbour ``indices[j]``, less :data:`CUTOFF_MARGIN`.
-    :data:`NO_GRAPH` when Qhull cannot triangulate the points, or they are more than
-    :data:`MAX_POINTS`. About 25-65 us per point.
+def neighbour_graph(points: np.ndarray) -> NeighbourGraph:
+    """The Delaunay neighbours of each point (N, 3) (:class:`NeighbourGraph`): those of point
+    ``i`` are ``indices[indptr[i]:indptr[i + 1]]``, nearest to point ``i`` first, and
+    ``cutoff[j]`` is a quarter of the squared distance (m^2) between point ``i`` and its
+    neighbour ``indices[j]``, less :data:`CUTOFF_MARGIN`. :data:`NO_GRAPH` when Qhull cannot
+    triangulate the points, or they are more than :data:`MAX_POINTS`.
 
     Exact duplicates are triangulated once, as the first of them; each other copy gets that
     point and its neighbours as neighbours (a walk may start there) and is no one's neighbour
@@ -109,7 +123,8 @@ def neighbour_graph(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndar
     indptr, indices = triangulation.vertex_neighbor_vertices
     indices = kept[indices]
     if len(kept) == len(points):
-        return _nearest_first(points, indptr.astype(np.int64), indices.astype(np.int64))
+        return NeighbourGraph(*_nearest_first(points, indptr.astype(np.int64),
+                                              indices.astype(np.int64)))
     row = np.full(len(points), -1, np.int64)
     row[kept] = np.arange(len(kept))
     lists = []
@@ -118,11 +133,11 @@ def neighbour_graph(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndar
         own = indices[indptr[r]:indptr[r + 1]]
         lists.append(own if i == copy_of[i] else np.concatenate(([copy_of[i]], own)))
     counts = np.array([len(n) for n in lists], dtype=np.int64)
-    return _nearest_first(points, np.concatenate(([0], np.cumsum(counts))).astype(np.int64),
-                          np.concatenate(lists).astype(np.int64))
+    indptr = np.concatenate(([0], np.cumsum(counts))).astype(np.int64)
+    return NeighbourGraph(*_nearest_first(points, indptr, np.concatenate(lists).astype(np.int64)))
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@kernel
 def _nearest_first(points, indptr, indices):
     """The graph ``(indptr, indices)`` with each point's neighbours sorted by their distance from
     it (insertion sort, stable: the lists are short), and the walk's cutoffs (see
@@ -141,13 +156,14 @@ def _nearest_first(points, indptr, indices):
     return indptr, ordered, squared * (0.25 * (1.0 - CUTOFF_MARGIN))
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def walk(x, y, z, start, points, indptr, indices, cutoff):
-    """The nearest point to ``(x, y, z)`` by a walk from point ``start`` on the graph
-    ``(indptr, indices, cutoff)`` of :func:`neighbour_graph`: ``(index, squared distance,
-    tied)``. Each step moves to the nearest neighbour while it is nearer than the current point
-    (neighbours past the cutoff are farther); ``tied``: the point it stops at has a neighbour
-    exactly as near (the answer is then not settled)."""
+@kernel(inline=True)
+def walk(x, y, z, start, points, graph):
+    """The nearest point to ``(x, y, z)`` by a walk from point ``start`` on the
+    :class:`NeighbourGraph` ``graph``: ``(index, squared distance, tied)``. Each step moves to the
+    nearest neighbour while it is nearer than the current point (neighbours past the cutoff are
+    farther); ``tied``: the point it stops at has a neighbour exactly as near (the answer is then
+    not settled)."""
+    indptr, indices, cutoff = graph.indptr, graph.indices, graph.cutoff
     v = start
     dv = squared_distance(points, v, x, y, z)
     while True:

@@ -9,11 +9,14 @@ candidate found elsewhere (a guess): its distance bounds the search from the sta
 
 from __future__ import annotations
 
-import numpy as np
-from numba import njit
+from typing import NamedTuple
 
-__all__ = ["LEAF_SIZE", "PRUNE_SLACK", "STACK_SIZE", "build", "k_nearest", "nearest",
-           "squared_distance"]
+import numpy as np
+
+from ..compiled.kernels import kernel
+
+__all__ = ["LEAF_SIZE", "PRUNE_SLACK", "STACK_SIZE", "KDTree", "SearchScratch", "build", "k_nearest",
+           "nearest", "squared_distance"]
 
 LEAF_SIZE = 8
 """Points per leaf at most."""
@@ -26,11 +29,43 @@ STACK_SIZE = 128
 """Depth of a search's stack of pending cells (a tree of 2**64 points needs less)."""
 
 
-@njit(cache=True, nogil=True)
+class KDTree(NamedTuple):
+    """The arrays of a k-d tree (:func:`build`); nodes are numbered breadth first, N points."""
+
+    points: np.ndarray
+    """The points in tree order, (N, 3) float64, m: ``points[i]`` is point ``order[i]``."""
+    order: np.ndarray
+    """The point index of each tree position, (N,) int64; a node's points are
+    ``order[start:stop]``."""
+    start: np.ndarray
+    """First tree position of each node, (nodes,) int64."""
+    stop: np.ndarray
+    """One past the last tree position of each node, (nodes,) int64."""
+    axis: np.ndarray
+    """Split axis of each node (0, 1, 2; -1 for a leaf), (nodes,) int64."""
+    split: np.ndarray
+    """Split coordinate of each node, (nodes,) float64, m."""
+    left: np.ndarray
+    """Child below the split, (nodes,) int64 (-1 for a leaf)."""
+    right: np.ndarray
+    """Child above the split, (nodes,) int64 (-1 for a leaf)."""
+
+
+class SearchScratch(NamedTuple):
+    """Scratch of one search (:func:`nearest`, :func:`k_nearest`): a stack of pending cells,
+    :data:`STACK_SIZE` rows."""
+
+    node: np.ndarray
+    """The cells' nodes, (STACK_SIZE,) int64."""
+    bound: np.ndarray
+    """Their squared distances from the query, (STACK_SIZE,) float64, m^2."""
+    offset: np.ndarray
+    """The query's offsets from each cell along the three axes, (STACK_SIZE, 3) float64, m."""
+
+
+@kernel(error_model="python")
 def build(points, leaf_size):
-    """The tree of ``points`` (N, 3): ``order`` (N,) (the points of a node are
-    ``order[start:stop]``) and per node ``start``, ``stop``, ``axis`` (-1 for a leaf), ``split``,
-    ``left``, ``right`` (-1 for a leaf). Nodes are numbered breadth first.
+    """The :class:`KDTree` of ``points`` (N, 3).
 
     A node of more than ``leaf_size`` points is sorted (stably) along its widest extent and
     split at its median; a node whose points all coincide stays a leaf.
@@ -75,17 +110,18 @@ def build(points, leaf_size):
         n_nodes += 2
     left = left[:n_nodes].copy()
     right = np.where(left >= 0, left + 1, -1)
-    return (order, start[:n_nodes].copy(), stop[:n_nodes].copy(), axis[:n_nodes].copy(),
-            split[:n_nodes].copy(), left, right)
+    return KDTree(points[order], order, start[:n_nodes].copy(), stop[:n_nodes].copy(),
+                  axis[:n_nodes].copy(), split[:n_nodes].copy(), left, right)
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def _descend(node, bound, ox, oy, oz, x, y, z, limit, axis, split, left, right,
-             stack_node, stack_bound, stack_offset, top):
+@kernel
+def _descend(node, bound, ox, oy, oz, x, y, z, limit, tree, stack, top):
     """From ``node`` (squared cell distance ``bound``, query offsets ``ox, oy, oz`` from its cell)
     down to the leaf holding the query ``(x, y, z)``, pushing every far side whose cell may hold
     a point within ``limit`` (a squared distance) with its incremental bound (Arya and Mount).
-    Returns the leaf and the new stack top."""
+    Returns the leaf and the new stack top (``stack``: :class:`SearchScratch`)."""
+    axis, split, left, right = tree.axis, tree.split, tree.left, tree.right
+    stack_node, stack_bound, stack_offset = stack.node, stack.bound, stack.offset
     while axis[node] >= 0:
         d = axis[node]
         gap = (x if d == 0 else (y if d == 1 else z)) - split[node]
@@ -101,24 +137,24 @@ def _descend(node, bound, ox, oy, oz, x, y, z, limit, axis, split, left, right,
     return node, top
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@kernel(inline=True)
 def squared_distance(points, i, x, y, z):
     """``|points[i] - (x, y, z)|^2``, summed in coordinate order (every search here compares
     distances computed this way, so equal points give equal distances)."""
     return (points[i, 0] - x) ** 2 + (points[i, 1] - y) ** 2 + (points[i, 2] - z) ** 2
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def nearest(x, y, z, best, best_d2, tree_points, order, start, stop, axis, split, left, right,
-            stack_node, stack_bound, stack_offset):
+@kernel(inline=True)
+def nearest(x, y, z, best, best_d2, tree, stack):
     """The nearest point to ``(x, y, z)``: ``(index, squared distance)``.
 
     Args:
         best, best_d2: a candidate (index, its squared distance) to start from, or ``(-1, inf)``.
-        tree_points: the points in tree order (``tree_points[i]`` is point ``order[i]``).
-        order, start, stop, axis, split, left, right: the tree (:func:`build`).
-        stack_node, stack_bound, stack_offset: scratch of :data:`STACK_SIZE` rows.
+        tree: the :class:`KDTree`.
+        stack: a :class:`SearchScratch`.
     """
+    tree_points, order, start, stop = tree.points, tree.order, tree.start, tree.stop
+    stack_node, stack_bound, stack_offset = stack.node, stack.bound, stack.offset
     top = 0
     stack_node[0], stack_bound[0] = 0, 0.0
     stack_offset[0, 0], stack_offset[0, 1], stack_offset[0, 2] = 0.0, 0.0, 0.0
@@ -128,8 +164,8 @@ def nearest(x, y, z, best, best_d2, tree_points, order, start, stop, axis, split
         top -= 1
         if bound > best_d2 * PRUNE_SLACK:
             continue
-        node, top = _descend(node, bound, ox, oy, oz, x, y, z, best_d2 * PRUNE_SLACK, axis, split,
-                             left, right, stack_node, stack_bound, stack_offset, top)
+        node, top = _descend(node, bound, ox, oy, oz, x, y, z, best_d2 * PRUNE_SLACK, tree, stack,
+                             top)
         for i in range(start[node], stop[node]):
             d2 = squared_distance(tree_points, i, x, y, z)
             if d2 <= best_d2:
@@ -139,7 +175,7 @@ def nearest(x, y, z, best, best_d2, tree_points, order, start, stop, axis, split
     return best, best_d2
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@kernel
 def insert(d2, p, best_d2, best):
     """Insert point ``p`` at squared distance ``d2`` into the sorted list ``best_d2``, ``best``
     (k,) (by distance, then index), dropping its last entry; the caller has checked that
@@ -151,12 +187,13 @@ def insert(d2, p, best_d2, best):
     best_d2[j], best[j] = d2, p
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def k_nearest(x, y, z, best_d2, best, tree_points, order, start, stop, axis, split, left, right,
-              stack_node, stack_bound, stack_offset):
+@kernel(inline=True)
+def k_nearest(x, y, z, best_d2, best, tree, stack):
     """The ``k`` nearest points to ``(x, y, z)``, written into ``best_d2``, ``best`` (k,): squared
     distances and indices, nearest first, ties by lower index; missing neighbours (k > N) stay
     ``inf`` and N. The lists are filled from scratch; the tree and scratch as in :func:`nearest`."""
+    tree_points, order, start, stop = tree.points, tree.order, tree.start, tree.stop
+    stack_node, stack_bound, stack_offset = stack.node, stack.bound, stack.offset
     n, last = len(tree_points), len(best) - 1
     best_d2[:] = np.inf
     best[:] = n
@@ -170,8 +207,8 @@ def k_nearest(x, y, z, best_d2, best, tree_points, order, start, stop, axis, spl
         top -= 1
         if bound > worst_d2 * PRUNE_SLACK:
             continue
-        node, top = _descend(node, bound, ox, oy, oz, x, y, z, worst_d2 * PRUNE_SLACK, axis, split,
-                             left, right, stack_node, stack_bound, stack_offset, top)
+        node, top = _descend(node, bound, ox, oy, oz, x, y, z, worst_d2 * PRUNE_SLACK, tree, stack,
+                             top)
         for i in range(start[node], stop[node]):
             d2 = squared_distance(tree_points, i, x, y, z)
             if d2 > worst_d2:

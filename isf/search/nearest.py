@@ -20,22 +20,33 @@ Compiled callers search per query with :func:`nearest_point` (or
 from __future__ import annotations
 
 import threading
+from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
-from . import kdtree
+from ..compiled.kernels import kernel
 from ..compiled.leaf import leaf
-from ._neighbour_graph import NO_GRAPH, neighbour_graph, walk
+from . import kdtree
+from ._neighbour_graph import NO_GRAPH, NeighbourGraph, neighbour_graph, walk
 
-__all__ = ["NearestPoints", "nearest_point", "search_scratch", "tree_nearest"]
+__all__ = ["NearestPoints", "SearchArrays", "nearest_point", "search_scratch", "tree_nearest"]
 
 
-@njit(cache=True, nogil=True)
+class SearchArrays(NamedTuple):
+    """The arrays of a nearest-point search (:attr:`NearestPoints.tree`)."""
+
+    kd: kdtree.KDTree
+    """The k-d tree of the points (:func:`isf.search.kdtree.build`)."""
+    graph: NeighbourGraph
+    """The points' Delaunay graph (:func:`isf.search._neighbour_graph.neighbour_graph`); empty
+    arrays (:data:`isf.search._neighbour_graph.NO_GRAPH`) without one."""
+
+
+@kernel(error_model="python")
 def search_scratch():
-    """The scratch arrays of a tree search (:data:`isf.search.kdtree.STACK_SIZE` rows)."""
+    """The scratch of a tree search (:class:`isf.search.kdtree.SearchScratch`)."""
     size = kdtree.STACK_SIZE
-    return np.empty(size, np.int64), np.empty(size), np.empty((size, 3))
+    return kdtree.SearchScratch(np.empty(size, np.int64), np.empty(size), np.empty((size, 3)))
 
 
 @leaf
@@ -51,8 +62,8 @@ def nearest_point(x, y, z, guess, points, tree, scratch, limit):
         scratch: :func:`search_scratch`.
         limit: squared search radius, m^2.
     """
-    if guess >= 0 and len(tree[8]):
-        found, found_d2, tied = walk(x, y, z, guess, points, tree[8], tree[9], tree[10])
+    if guess >= 0 and len(tree.graph.indptr):
+        found, found_d2, tied = walk(x, y, z, guess, points, tree.graph)
         if not tied:
             return (found, found_d2) if found_d2 < limit else (-1, limit)
         guess = found  # a tie: the tree settles it, bounded by the walk's answer
@@ -68,11 +79,10 @@ def tree_nearest(x, y, z, bound, points, tree, scratch, limit):
         d2 = kdtree.squared_distance(points, bound, x, y, z)
         if d2 < limit:
             best, best_d2 = bound, d2
-    return kdtree.nearest(x, y, z, best, best_d2, tree[0], tree[1], tree[2], tree[3], tree[4], tree[5],
-                          tree[6], tree[7], scratch[0], scratch[1], scratch[2])
+    return kdtree.nearest(x, y, z, best, best_d2, tree.kd, scratch)
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@kernel
 def nearest_with_guesses(queries, guess, limit, points, tree):
     """:func:`nearest_point` of each query (M, 3) with its guess (M,) within the squared radius
     ``limit``: distances (M,), indices (M,); ``inf`` and -1 where no point is that close. A query
@@ -93,7 +103,7 @@ def nearest_with_guesses(queries, guess, limit, points, tree):
     return distance, index
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@kernel
 def _query_k(queries, k, tree):
     """The k nearest points of each query (M, 3) (:func:`isf.search.kdtree.k_nearest`): distances
     (M, k), indices (M, k)."""
@@ -102,8 +112,7 @@ def _query_k(queries, k, tree):
     best_d2, best = np.empty(k), np.empty(k, np.int64)
     scratch = search_scratch()
     for q in range(m):
-        kdtree.k_nearest(queries[q, 0], queries[q, 1], queries[q, 2], best_d2, best, tree[0], tree[1],
-                         tree[2], tree[3], tree[4], tree[5], tree[6], tree[7], scratch[0], scratch[1], scratch[2])
+        kdtree.k_nearest(queries[q, 0], queries[q, 1], queries[q, 2], best_d2, best, tree.kd, scratch)
         for j in range(k):
             distance[q, j], index[q, j] = np.sqrt(best_d2[j]), best[j]
     return distance, index
@@ -117,9 +126,9 @@ class NearestPoints:
         leaf_size: points per leaf of the k-d tree at most (:data:`isf.search.kdtree.LEAF_SIZE` by
             default). It changes the speed, never an answer: larger leaves suit queries that
             lie farther from the points than their spacing (on a dense surface sample).
-        graph: also build the points' Delaunay graph (:mod:`isf.search._neighbour_graph`; 25-65 us
-            per point), so that searches from a guess walk it. It changes the speed, not the
-            answers (but see the joggle in :mod:`isf.search._neighbour_graph`).
+        graph: also build the points' Delaunay graph (:mod:`isf.search._neighbour_graph`), so
+            that searches from a guess walk it. It changes the speed, not the answers (but see
+            the joggle in :mod:`isf.search._neighbour_graph`).
     """
 
     def __init__(self, points: np.ndarray, leaf_size: int = kdtree.LEAF_SIZE, graph: bool = False):
@@ -129,14 +138,10 @@ class NearestPoints:
             raise ValueError(f"need points of shape (N, 3) with N >= 1, got {self.points.shape}")
         if isinstance(leaf_size, bool) or not isinstance(leaf_size, (int, np.integer)) or leaf_size < 1:
             raise ValueError(f"leaf_size must be a positive integer, got {leaf_size!r}")
-        order, *nodes = kdtree.build(self.points, int(leaf_size))
-        self.tree = (self.points[order], order, *nodes, *NO_GRAPH)
-        """The arrays of the search, for :func:`nearest_point` and
-        :func:`isf.search.kdtree.k_nearest`. First the tree's (the points in tree order, leaves
-        contiguous, then :func:`isf.search.kdtree.build`'s), then the graph's ``indptr``,
-        ``indices`` and ``cutoff`` (:func:`isf.search._neighbour_graph.neighbour_graph`; empty without
-        a graph). :meth:`add_graph` replaces the tuple (never
-        changes its arrays), so a search that holds the old tuple stays valid."""
+        self.tree = SearchArrays(kdtree.build(self.points, int(leaf_size)), NO_GRAPH)
+        """The arrays of the search (:class:`SearchArrays`), for :func:`nearest_point` and
+        (its ``kd``) :func:`isf.search.kdtree.k_nearest`. :meth:`add_graph` replaces the tuple
+        (never changes its arrays), so a search that holds the old tuple stays valid."""
         self._graph_lock = threading.Lock()
         self._graph_tried = False
         if graph:
@@ -145,10 +150,10 @@ class NearestPoints:
     @property
     def has_graph(self) -> bool:
         """Whether searches from a guess walk the Delaunay graph."""
-        return len(self.tree[8]) > 0
+        return len(self.tree.graph.indptr) > 0
 
     def add_graph(self) -> bool:
-        """Build the points' Delaunay graph (:mod:`isf.search._neighbour_graph`; 25-65 us per point),
+        """Build the points' Delaunay graph (:mod:`isf.search._neighbour_graph`),
         if no call did before, and let searches from a guess walk it. Returns whether the search
         has a graph (points in one plane, too few or too many get none). Thread-safe: while
         one thread builds, a call from another returns at once (False) and its searches use the
@@ -158,7 +163,7 @@ class NearestPoints:
         try:
             if not self._graph_tried:
                 self._graph_tried = True
-                self.tree = (*self.tree[:8], *neighbour_graph(self.points))
+                self.tree = self.tree._replace(graph=neighbour_graph(self.points))
         finally:
             self._graph_lock.release()
         return self.has_graph
@@ -183,7 +188,7 @@ class NearestPoints:
         else:
             guess = np.ascontiguousarray(guess, dtype=np.int64).reshape(-1)
             if len(guess) != len(queries) or (len(guess) and not (
-                    -1 <= guess.min() and guess.max() < len(self.points))):
+                    guess.min() >= -1 and guess.max() < len(self.points))):
                 raise ValueError(f"guess must hold one index in [-1, {len(self.points) - 1}] per "
                                  f"query ({len(queries)}); pass None for no guesses")
         return nearest_with_guesses(queries, guess, np.inf, self.points, self.tree)

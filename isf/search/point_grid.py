@@ -8,13 +8,31 @@ every point.
 
 from __future__ import annotations
 
-import numpy as np
-from numba import njit
+from typing import NamedTuple
 
-__all__ = ["PointGrid", "ball_box_candidates"]
+import numpy as np
+
+from ..compiled.kernels import kernel
+
+__all__ = ["GridCells", "PointGrid", "ball_box_candidates"]
 
 MAX_CELLS = 1 << 18
 """The cell grows beyond the asked size to keep the grid at most this many cells."""
+
+
+class GridCells(NamedTuple):
+    """The cells of a :class:`PointGrid` of N points, C cells."""
+
+    order: np.ndarray
+    """Point indices sorted by cell, (N,) int64."""
+    start: np.ndarray
+    """The first entry of each cell in ``order``, (C + 1,) int64."""
+    lo: np.ndarray
+    """The grid's corner, (3,) float64, m."""
+    cell: float
+    """Cell width, m."""
+    shape: np.ndarray
+    """Cells per axis, (3,) int64."""
 
 
 class PointGrid:
@@ -23,9 +41,7 @@ class PointGrid:
 
     Attributes:
         points: the points, (N, 3).
-        arrays: ``(order, start, lo, cell, shape)`` for :func:`ball_box_candidates`: point indices
-            sorted by cell (N,), the first entry of each cell in ``order`` (C + 1,), the grid's
-            corner (3,), cell width (m) and cells per axis (3,).
+        arrays: the :class:`GridCells`, for :func:`ball_box_candidates`.
     """
 
     def __init__(self, points: np.ndarray, cell: float):
@@ -37,16 +53,16 @@ class PointGrid:
         keys = _cell_keys(self.points, lo, cell, shape)
         order = np.argsort(keys, kind="stable")
         start = np.searchsorted(keys[order], np.arange(int(np.prod(shape)) + 1))
-        self.arrays = (order.astype(np.int64), start.astype(np.int64), lo, cell, shape)
+        self.arrays = GridCells(order.astype(np.int64), start.astype(np.int64), lo, cell, shape)
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@kernel
 def _cell_index(x, lo, cell, size):
     """Cell of coordinate ``x`` along one axis, clipped to ``[0, size)``."""
     return min(max(int(np.floor((x - lo) / cell)), 0), size - 1)
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@kernel
 def _cell_keys(points, lo, cell, shape):
     """Flat cell index of every point (N,)."""
     keys = np.empty(len(points), np.int64)
@@ -58,15 +74,16 @@ def _cell_keys(points, lo, cell, shape):
     return keys
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def ball_box_candidates(centre, radius, R, origin, box_lo, box_hi, order, start, lo, cell, shape,
-                        out):
+@kernel
+def ball_box_candidates(centre, radius, R, origin, box_lo, box_hi, cells, out):
     """Indices of the points in the cells within a cell's width of the ball (``centre`` (3,),
     ``radius`` m) whose centre lies in the box ``[box_lo, box_hi]`` ((3,) each, metres, infinite
     for none) of the frame of pose ``R`` (3, 3), ``origin`` (3,) (a point ``x`` is at
     ``R^T (x - origin)`` in it) grown by 0.87 cell widths on every side (a point of a cell is at
     most half its diagonal, 0.866 widths, from its centre), so every point of the ball in the
-    box is listed; written to the front of ``out`` (N,) cell by cell; returns how many."""
+    box is listed; written to the front of ``out`` (N,) cell by cell; returns how many.
+    ``cells``: the grid's :class:`GridCells`."""
+    order, start, lo, cell, shape = cells.order, cells.start, cells.lo, cells.cell, cells.shape
     first, last = np.empty(3, np.int64), np.empty(3, np.int64)
     for d in range(3):
         if centre[d] + radius < lo[d] - cell or centre[d] - radius > lo[d] + shape[d] * cell + cell:
@@ -103,7 +120,7 @@ def ball_box_candidates(centre, radius, R, origin, box_lo, box_hi, order, start,
     return n
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@kernel(inline=True)
 def _gap(x, low, cell):
     """Distance from ``x`` to the interval ``[low, low + cell]`` along one axis."""
     return max(low - x, x - low - cell, 0.0)

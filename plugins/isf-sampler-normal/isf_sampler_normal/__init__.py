@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
+
 from isf.samplers import Proposal, Sampler, place_gripper
 from isf.samplers.orientation import approach_direction, initial_rotations
 

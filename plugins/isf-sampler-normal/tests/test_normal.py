@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
 from isf.exceptions import GripperDescriptionError
 from isf.samplers import available_samplers, get_sampler
 from isf.testing import canonical_gripper, canonical_object, check_sampler
-
 from isf_sampler_normal import NormalSampler
 
 # The canonical gripper's palm is mounted with rpy = (0.3, 0, pi/2) at (0.01, 0, 0.02);

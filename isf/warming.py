@@ -28,19 +28,19 @@ import numpy as np
 import pinocchio as pin
 import trimesh
 
-from ..repair.clearance import ClearanceRepair
-from ..collision.checker import CollisionChecker
-from ..collision.kernel import check_elements
-from ..collision.voxels import SurfaceVoxels
-from ..collision.convex_elements import ConvexElements
-from ..fitting.correspondence import match
-from ..repair.dense_qp import solve_dense_qp
-from ..fitting.fit import fit_many
-from ..gripper.model import ContactSurface, Gripper, LinkGeometry
-from ..search.nearest import NearestPoints
-from ..object.surface import ObjectSurface
-from ..search.point_grid import PointGrid
-from ..repair.rows import deepest_rows, undecided
+from .collision.checker import CollisionChecker
+from .collision.convex_elements import ConvexElements
+from .collision.kernel import check_elements
+from .collision.voxels import SurfaceVoxels
+from .fitting.correspondence import match
+from .fitting.fit import fit_many
+from .gripper.model import ContactSurface, Gripper, LinkGeometry
+from .object.surface import ObjectSurface
+from .repair.clearance import ClearanceRepair
+from .repair.dense_qp import solve_dense_qp
+from .repair.rows import deepest_rows, undecided
+from .search.nearest import NearestPoints
+from .search.point_grid import PointGrid
 
 __all__ = ["warm_up"]
 
@@ -97,7 +97,7 @@ def warm_up() -> float:
     start = time.perf_counter()
     helper = None
     if (os.cpu_count() or 1) > 1 and not _cached(check_elements):
-        helper = subprocess.Popen([sys.executable, "-c", "from isf.compiled.warming import _warm_checks; _warm_checks()"],
+        helper = subprocess.Popen([sys.executable, "-c", "from isf.warming import _warm_checks; _warm_checks()"],
                                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     _warm_engine()
     if helper is not None:
