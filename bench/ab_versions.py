@@ -47,6 +47,16 @@ GRIPPERS = ("paper", "three", "allegro")
 _ABSOLUTE_IMPORT = re.compile(r"^(\s*)(from|import) isf(?=[. ])", re.MULTILINE)
 
 
+def warm_up(package) -> None:
+    """Compile or load the kernels of one version (``warming.warm_up``, or ``compiled.warm_up``
+    in versions before the subpackage layout)."""
+    try:
+        module = importlib.import_module(f"{package.__name__}.warming")
+    except ImportError:
+        module = importlib.import_module(f"{package.__name__}.compiled")
+    module.warm_up()
+
+
 def base_package(revision: str):
     """isf at ``revision``, imported as the package ``isf_base`` (extracted once per revision)."""
     try:
@@ -135,7 +145,7 @@ def main() -> None:
     base, sha = base_package(args.base)
     versions = {"base": base, "current": isf}
     for package in versions.values():
-        importlib.import_module(f"{package.__name__}.compiled").warm_up()
+        warm_up(package)
     seeds = 1 if args.quick else args.seeds
     rows = []
     for name in grippers:

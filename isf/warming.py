@@ -3,8 +3,8 @@
 The inner loops of isf are numba kernels: the moment sums and steps of IPFO
 (:mod:`isf.fitting.moment_kernels`), the nearest-point search (:mod:`isf.search.nearest`), the
 correspondence filters (:mod:`isf.fitting.correspondence`), the finger step's active set
-(:mod:`isf.fitting._box_qp`), the kinematics (:mod:`isf.gripper.chain`), the repair's QP
-(:mod:`isf.repair.dense_qp`) and the collision checks (``isf.collision.kernel``). numba compiles
+(:mod:`isf.fitting._box_qp`), the kinematics (:mod:`isf.gripper.chain`), the repair's rows
+(:mod:`isf.repair.rows`) and the collision checks (``isf.collision.kernel``). numba compiles
 a kernel at its first call and caches the machine code on disk (in the package's
 ``__pycache__`` folders, or in numba's user cache when those are read-only;
 ``NUMBA_CACHE_DIR`` moves it; :mod:`isf.compiled.cache` drops cached kernels whose sources
@@ -37,7 +37,6 @@ from .fitting.fit import fit_many
 from .gripper.model import ContactSurface, Gripper, LinkGeometry
 from .object.surface import ObjectSurface
 from .repair.clearance import ClearanceRepair
-from .repair.dense_qp import solve_dense_qp
 from .repair.rows import deepest_rows, undecided
 from .search.nearest import NearestPoints
 from .search.point_grid import PointGrid
@@ -88,7 +87,7 @@ def warm_up() -> float:
     It fits a one-joint gripper onto a small plane (the engine's own calls, so its own
     argument types), once more with IPFO pausing for Python (as it does for OSQP finger steps
     and for joints without compiled kinematics), asks for nearest points as the repair does,
-    runs the repair's convex-element test, row selection and a small repair QP, the voxel
+    runs the repair's convex-element test and row selection, the voxel
     tests, collision checks of a convex and a non-convex element against a mesh, apart and
     pressed in, and the repair of the pressed-in state. When the kernels of the checks and the
     repair are not compiled yet and the machine has a second core, a second process compiles
@@ -140,7 +139,6 @@ def _warm_checks() -> None:
     box = trimesh.creation.box(extents=(0.01, 0.01, 0.01))
     ConvexElements([(box.vertices, box.faces)], np.zeros(1), np.zeros(1)).rows(
         np.eye(4), np.eye(3)[None], np.zeros((1, 3)), PointGrid(points, 0.004), 0.003, 12)
-    solve_dense_qp(np.eye(2), np.ones(2), np.ones((1, 2)), np.zeros(1), np.ones(1))
     one, element = np.zeros(1), np.zeros(1, dtype=np.int64)  # the repair's row selection
     deepest_rows(one, element, 1, 0.008, 12)
     undecided(one, element, one, element, 1, 0.008, 12, 1e-12)

@@ -39,7 +39,7 @@ def test_warm_up_covers_every_kernel_call_of_a_plan():
         "isf.fitting.engine_kernel.finish_round", "isf.fitting._ipfo_kernel.alternate",
         "isf.search.nearest.nearest_with_guesses", "isf.search.nearest._query_k",
         "isf.fitting.correspondence.filter_pairs", "isf.gripper.chain.compiled_frame_kinematics",
-        "isf.repair.dense_qp._dual_active_set", "isf.collision.kernel.check_elements",
+        "isf.collision.kernel.check_elements",
         "isf.collision.kernel.reverse_clearance", "isf.collision.checker._rigid",
         "isf.repair._step.to_object", "isf.repair._step.motion_rows", "isf.repair._step.step_qp",
         "isf.repair._contacts.contact_pairs",

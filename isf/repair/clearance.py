@@ -53,8 +53,7 @@ since a turning link rises faster than its linearisation) is shortened to the se
 brings that row to zero, when the shorter step is within ``tolerance``.
 The best state visited is returned: least penetration first, then the smallest contact residual.
 Units inside the QP are millimetres. Each QP is small and dense (tens of variables, a hundred or so
-rows) and is solved exactly by a dual active-set method (``QP_SOLVER``), with OSQP as the
-fallback.
+rows) and is solved exactly by daqp's dual active-set method, with OSQP as the fallback.
 The gripper samples, convex elements and the dense object surface are prepared once and cached
 (``isf.repair._geometry``), so a repairer is cheap to build again for the same gripper and mesh.
 """
@@ -66,6 +65,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
 
+import daqp
 import numpy as np
 import osqp
 import scipy.sparse as sp
@@ -84,7 +84,6 @@ from ..se3 import exp_so3
 from ._contacts import contact_pairs
 from ._geometry import gripper_side, object_side
 from ._step import motion_rows, step_qp, to_object
-from .dense_qp import solve_dense_qp
 from .rows import DensePlanes, RowLimits, deepest_rows, sample_rows
 
 __all__ = ["ClearanceRepair", "RepairConfig", "RepairResult", "repair_penetration"]
@@ -96,15 +95,10 @@ _CONVEX_REACH = 0.003  # object points this close to a convex element (beyond it
 _OUTLIER_FACTOR = 3.0  # pull mode: pairs farther than this times the median distance are dropped
 _BOUND_SLACK = 1e-12  # rounding allowance on the bounds of a sample's violation, m
 
-QP_SOLVER = "dense_qp"
-"""The exact solver of the step's QP: ``"dense_qp"`` (:func:`isf.repair.dense_qp.solve_dense_qp`)
-or ``"daqp"`` (the ``daqp`` package, the same method; its answers differ from dense_qp's in the
-last bits, so the grasps it gives are not bit for bit those of dense_qp; measured in
-``bench/bench_repair_qp.py``)."""
 DAQP_PRIMAL_TOLERANCE = 1e-12
-"""daqp's primal feasibility tolerance (its default, 1e-6, leaves rows violated by up to
-2.5e-10 mm on the repair's QPs, where dense_qp's violations stay below 1.2e-13 mm; at this
-tolerance daqp's stay below dense_qp's at no measurable cost, ``bench/bench_repair_qp.py``)."""
+"""daqp's primal feasibility tolerance. Its default, 1e-6, leaves the repair's rows violated by
+up to 2.5e-10 mm; at 1e-12 the violations stay below 1e-14 mm at no measurable cost
+(docs/benchmarks.md, "bench_repair_qp")."""
 _DAQP_OPTIMAL = (1, 2)  # daqp's exit flags of an optimal solution (2: one of several)
 
 
@@ -591,8 +585,8 @@ class ClearanceRepair:
     def _solve(self, c_rows, gaps, a_rows, violation, element, q) -> np.ndarray | None:
         """One QP step ``x = (v, w, dq)`` in SI units, or None when no solver finds one.
 
-        The QP is solved exactly by ``QP_SOLVER``; OSQP is the fallback should that report
-        anything but success (e.g. infeasible rows).
+        The QP is solved exactly by daqp; OSQP is the fallback should daqp report anything but
+        an optimum (e.g. infeasible rows).
         """
         H, f, A, lower, upper, scale = self._qp(c_rows, gaps, a_rows, violation, element, q)
         nx = len(scale)
@@ -617,21 +611,12 @@ class ClearanceRepair:
 
 
 def _solve_exact(H, f, A, lower, upper) -> np.ndarray | None:
-    """The exact answer of ``QP_SOLVER`` to ``min 1/2 z^T H z + f^T z, lower <= A z <=
-    upper``, or None when it reports anything but an optimum (logged)."""
-    if QP_SOLVER == "daqp":
-        import daqp
-
-        z, _, flag, _ = daqp.solve(H, f, A, upper, lower, primal_tol=DAQP_PRIMAL_TOLERANCE)
-        if flag in _DAQP_OPTIMAL:
-            return z
-        logger.debug("clearance QP: daqp exit flag %d (-1: infeasible); falling back to OSQP",
-                     flag)
-        return None
-    result = solve_dense_qp(H, f, A, lower, upper)
-    if result.status == "solved":
-        return result.x
-    logger.debug("clearance QP: dense_qp %s; falling back to OSQP", result.status)
+    """daqp's exact answer to ``min 1/2 z^T H z + f^T z, lower <= A z <= upper`` (H (n, n)
+    positive definite, A (m, n)), or None when it reports anything but an optimum (logged)."""
+    z, _, flag, _ = daqp.solve(H, f, A, upper, lower, primal_tol=DAQP_PRIMAL_TOLERANCE)
+    if flag in _DAQP_OPTIMAL:
+        return z
+    logger.debug("clearance QP: daqp exit flag %d (-1: infeasible); falling back to OSQP", flag)
     return None
 
 
