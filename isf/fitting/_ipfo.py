@@ -32,7 +32,7 @@ from ._ipfo_kernel import (
     no_answer,
 )
 from ._moments import PairMoments
-from .moment_kernels import points_in_object
+from .moment_kernels import GroupMoments, points_in_object
 
 if TYPE_CHECKING:
     from .reference import PairBatch
@@ -149,8 +149,8 @@ def ipfo(pairs: PairBatch, T: np.ndarray, q: np.ndarray, qps: list[FingerStepQP]
     n_log = np.zeros(n_fits, dtype=np.int64)
     state = IPFOState(T, q, links.rotations, links.positions, links.J_linear, links.J_angular,
                       error, np.ones(n_fits, dtype=bool), log, n_log)
-    sums = IPFOMoments(moments.origin, moments.fit_count, moments.M, moments.N, moments.v,
-                       moments.beta2, moments.w, moments.s, moments.count,
+    sums = IPFOMoments(GroupMoments(moments.origin, moments.fit_count, moments.M, moments.N,
+                                    moments.v, moments.beta2, moments.w, moments.s, moments.count),
                        config.ipfo_tolerance * seg.counts.astype(float))
     params = ipfo_parameters(gripper, config, qps is not None)
     request = alternate(state, sums, params, 0, no_answer(state))

@@ -23,7 +23,7 @@ import numpy as np
 from ..compiled.kernels import kernel
 from ..gripper.chain import ChainArrays, compiled_frame_kinematics
 from ._finger_step import bounded_steps
-from .moment_kernels import finger_systems, fit_errors, palm_updates
+from .moment_kernels import GroupMoments, finger_systems, fit_errors, palm_updates
 
 __all__ = ["DONE", "IPFOAnswer", "IPFOMoments", "IPFOParameters", "IPFORequest", "IPFOState",
            "NEED_FINGER_STEP", "NEED_KINEMATICS", "alternate", "no_answer"]
@@ -61,23 +61,14 @@ class IPFOState(NamedTuple):
 
 
 class IPFOMoments(NamedTuple):
-    """The moments of B fits' pairs (:func:`isf.fitting.moment_kernels.group_moments`, whose
-    docstring gives the fields' shapes and units) and each fit's stop threshold.
+    """The moments of B fits' pairs and each fit's stop threshold.
 
     Attributes:
-        origin, fit_count, M, N, v, beta2, w, s, count: the moments, float64.
+        sums: the moments (:class:`isf.fitting.moment_kernels.GroupMoments`).
         threshold: the least decrease of E that goes on, (B,) float64, m^2.
     """
 
-    origin: np.ndarray
-    fit_count: np.ndarray
-    M: np.ndarray
-    N: np.ndarray
-    v: np.ndarray
-    beta2: np.ndarray
-    w: np.ndarray
-    s: np.ndarray
-    count: np.ndarray
+    sums: GroupMoments
     threshold: np.ndarray
 
 
@@ -192,7 +183,7 @@ def alternate(state, moments, params, start, answer):
     """
     T, q, R, p, Jv, Jw = state.T, state.q, state.R, state.p, state.Jv, state.Jw
     error, active, log, n_log = state.error, state.active, state.log, state.n_log
-    m, threshold = moments, moments.threshold
+    m, threshold = moments.sums, moments.threshold
     q_lower, q_upper, step = params.q_lower, params.q_upper, params.step
     n_fits, n = q.shape
     alpha = params.alpha

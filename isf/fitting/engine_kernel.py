@@ -39,7 +39,14 @@ from ..search.kdtree import squared_distance
 from ..search.nearest import nearest_point, search_scratch
 from ._ipfo_kernel import DONE, IPFOMoments, IPFORequest, IPFOState, alternate, no_answer
 from .correspondence import keep_inliers, reject_duplicate_targets
-from .moment_kernels import fit_errors, group_moments, link_poses, place, points_in_object
+from .moment_kernels import (
+    GroupMoments,
+    fit_errors,
+    group_moments,
+    link_poses,
+    place,
+    points_in_object,
+)
 
 __all__ = ["CONVERGED", "EMPTY", "FINISHED", "IDLE", "LOST_CONTACT", "MAX_ITERATIONS",
            "PENDING", "ROUNDS", "RUNNING", "FitParameters", "GripperArrays", "HistoryArrays",
@@ -379,9 +386,10 @@ def _empty_round(n, n_links, n_ipfo):
                       np.zeros((0, n_links, 3)), np.zeros((0, n_links, 3, n)),
                       np.zeros((0, n_links, 3, n)), np.zeros(0), np.zeros(0, np.bool_),
                       np.zeros((0, n_ipfo)), np.zeros(0, np.int64))
-    moments = IPFOMoments(np.zeros((0, 3)), np.zeros(0), np.zeros((0, 12, 12)),
-                          np.zeros((0, 9, 9)), np.zeros((0, 12)), np.zeros(0), np.zeros((0, 9)),
-                          np.zeros((0, 4)), np.zeros(0), np.zeros(0))
+    moments = IPFOMoments(GroupMoments(np.zeros((0, 3)), np.zeros(0), np.zeros((0, 12, 12)),
+                                       np.zeros((0, 9, 9)), np.zeros((0, 12)), np.zeros(0),
+                                       np.zeros((0, 9)), np.zeros((0, 4)), np.zeros(0)),
+                          np.zeros(0))
     none = np.zeros((0, n))
     request = IPFORequest(DONE, 0, np.zeros((0, n, n)), none, none, none, none,
                           np.zeros(0, np.bool_), none, np.zeros(0, np.bool_))
@@ -443,8 +451,8 @@ def _prepare(slots, grip, obj, fit_params, ipfo_params, work):
                 pair_points[k, j], pair_normals[k, j] = points_link[g, j], normals_link[g, j]
                 targets[k, j], target_normals[k, j] = obj_points[t, j], obj_normals[t, j]
             k += 1
-    origin, fit_count, M, N, v, beta2, w, s, count_g = group_moments(
-        pair_fit, pair_link, pair_points, pair_normals, targets, target_normals, n_fits, n_links)
+    sums = group_moments(pair_fit, pair_link, pair_points, pair_normals, targets, target_normals,
+                         n_fits, n_links)
     n = q.shape[1]
     Tc, qc = np.empty((n_fits, 4, 4)), np.empty((n_fits, n))
     Rc, pc = np.empty((n_fits, n_links, 3, 3)), np.empty((n_fits, n_links, 3))
@@ -453,14 +461,15 @@ def _prepare(slots, grip, obj, fit_params, ipfo_params, work):
         b = fits[f]
         Tc[f], qc[f], Rc[f], pc[f], Jvc[f], Jwc[f] = T[b], q[b], R[b], p[b], Jv[b], Jw[b]
     alpha = ipfo_params.alpha
-    error = fit_errors(Tc, Rc, pc, origin, M, N, v, beta2, w, count_g, alpha ** 2)
+    error = fit_errors(Tc, Rc, pc, sums.origin, sums.M, sums.N, sums.v, sums.beta2, sums.w,
+                       sums.count, alpha ** 2)
     threshold = ipfo_params.tolerance * n_pairs.astype(np.float64)
     log = np.empty((n_fits, ipfo_params.max_iterations))
     active, n_log = np.ones(n_fits, np.bool_), np.zeros(n_fits, np.int64)
     state = IPFOState(Tc, qc, Rc, pc, Jvc, Jwc, error, active, log, n_log)
     pairs = RoundPairs(fits, pair_fit, pair_link, pair_points, pair_normals, targets,
                        target_normals, n_pairs)
-    moments = IPFOMoments(origin, fit_count, M, N, v, beta2, w, s, count_g, threshold)
+    moments = IPFOMoments(sums, threshold)
     return pairs, state, moments
 
 
