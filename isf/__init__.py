@@ -7,96 +7,74 @@ surfaces are tagged in the file.
 Frames: ``T_a_b`` is the pose of frame ``b`` in frame ``a`` (it maps points
 expressed in ``b`` into ``a``). The ``object`` frame is the frame of the object
 file; the ``gripper`` frame is the URDF's root link.
+
+The public names below load on first use (:pep:`562`): ``import isf`` stays fast, and a
+command that needs no kernels (``isf --help``) loads none of numba, Pinocchio or trimesh.
 """
+
+from __future__ import annotations
+
+from .exports import lazy_exports
 
 __version__ = "0.1.0"
 
-from .compiled.cache import refresh_installed as _refresh_kernel_cache
+_SOURCES = {  # each public name -> the module (relative to isf) that defines it
+    "AssetFetchError": "exceptions",
+    "CameraIntrinsics": "scene",
+    "CollisionChecker": "collision.checker",
+    "CollisionReport": "collision.checker",
+    "ConfigError": "exceptions",
+    "ContactSurface": "gripper.model",
+    "FitConfig": "config",
+    "FitResult": "result",
+    "FitStatus": "result",
+    "GeometryLoadError": "exceptions",
+    "Grasp": "planning.planner",
+    "Gripper": "gripper.model",
+    "GripperDescriptionError": "exceptions",
+    "ISFError": "exceptions",
+    "ISFWarning": "exceptions",
+    "InvalidInputError": "exceptions",
+    "IterationRecord": "result",
+    "JointLimitError": "exceptions",
+    "JointLimitViolation": "exceptions",
+    "MeshNotFoundError": "exceptions",
+    "ModelBuildError": "exceptions",
+    "ObjectLoadError": "exceptions",
+    "ObjectSizeWarning": "exceptions",
+    "ObjectSurface": "object.surface",
+    "Outcome": "samplers",
+    "OutputFileError": "exceptions",
+    "PlanResult": "planning.planner",
+    "PlanStats": "planning.planner",
+    "Plane": "collision.checker",
+    "PluginLoadError": "exceptions",
+    "Proposal": "samplers",
+    "QPStepError": "exceptions",
+    "RegistrationError": "exceptions",
+    "RepairConfig": "repair.clearance",
+    "Sampler": "samplers",
+    "SamplerNotFound": "exceptions",
+    "Scene": "scene",
+    "SceneView": "scene",
+    "SurfaceSelectionError": "exceptions",
+    "URDFReadError": "exceptions",
+    "UnknownAssetError": "exceptions",
+    "YCBNotFoundError": "exceptions",
+    "available_samplers": "samplers",
+    "fit": "fitting.fit",
+    "fit_many": "fitting.fit",
+    "get_sampler": "samplers",
+    "inspect_gripper": "gripper.loading",
+    "load_gripper": "gripper.loading",
+    "load_object": "object.loading",
+    "load_scene": "scene",
+    "open_object": "object.specs",
+    "plan": "planning.planner",
+    "register_sampler": "samplers",
+}
 
-_refresh_kernel_cache()  # before any kernel loads: drop cached kernels whose sources changed
+__all__ = sorted([*_SOURCES, "__version__"])  # noqa: PLE0605 (a new name is one line above)
 
-from .collision.checker import CollisionChecker, CollisionReport, Plane
-from .config import FitConfig
-from .exceptions import (
-    AssetFetchError,
-    ConfigError,
-    GeometryLoadError,
-    GripperDescriptionError,
-    InvalidInputError,
-    ISFError,
-    ISFWarning,
-    JointLimitError,
-    JointLimitViolation,
-    MeshNotFoundError,
-    ModelBuildError,
-    ObjectLoadError,
-    PluginLoadError,
-    QPStepError,
-    RegistrationError,
-    SamplerNotFound,
-    SurfaceSelectionError,
-    UnknownAssetError,
-    URDFReadError,
-    YCBNotFoundError,
-)
-from .fitting.fit import fit, fit_many
-from .gripper.loading import inspect_gripper, load_gripper
-from .gripper.model import ContactSurface, Gripper
-from .object.loading import load_object
-from .object.specs import open_object
-from .object.surface import ObjectSurface
-from .planning.planner import Grasp, PlanResult, PlanStats, plan
-from .repair.clearance import RepairConfig
-from .result import FitResult, FitStatus, IterationRecord
-from .samplers import Outcome, Proposal, Sampler, available_samplers, get_sampler, register_sampler
 
-__all__ = [
-    "AssetFetchError",
-    "CollisionChecker",
-    "CollisionReport",
-    "ConfigError",
-    "ContactSurface",
-    "FitConfig",
-    "FitResult",
-    "FitStatus",
-    "GeometryLoadError",
-    "Grasp",
-    "Gripper",
-    "GripperDescriptionError",
-    "ISFError",
-    "ISFWarning",
-    "InvalidInputError",
-    "IterationRecord",
-    "JointLimitError",
-    "JointLimitViolation",
-    "MeshNotFoundError",
-    "ModelBuildError",
-    "ObjectLoadError",
-    "ObjectSurface",
-    "Outcome",
-    "PlanResult",
-    "PlanStats",
-    "Plane",
-    "PluginLoadError",
-    "Proposal",
-    "QPStepError",
-    "RegistrationError",
-    "RepairConfig",
-    "Sampler",
-    "SamplerNotFound",
-    "SurfaceSelectionError",
-    "URDFReadError",
-    "UnknownAssetError",
-    "YCBNotFoundError",
-    "__version__",
-    "available_samplers",
-    "fit",
-    "fit_many",
-    "get_sampler",
-    "inspect_gripper",
-    "load_gripper",
-    "load_object",
-    "open_object",
-    "plan",
-    "register_sampler",
-]
+__getattr__, __dir__ = lazy_exports(__name__, _SOURCES)

@@ -1,26 +1,40 @@
-"""The ``isf`` command line: ``plan``, ``grippers``, ``samplers``, ``tag``, ``inspect``.
+"""The ``isf`` command line: ``plan``, ``grippers``, ``samplers``, ``tag``, ``inspect``, ``compile``.
 
-Exit codes: 0 success, 1 a gripper with problems (``inspect``, ``tag``) or a
-plan that found no collision-free grasp (of any of the objects planned), 2 a usage or input
-error (one line on stderr, no traceback, no output file written).
+Exit codes (docs/cli.md):
+
+* 0: success;
+* 1: a plan found no valid grasp (collision-free with every contact surface touching the
+  object) for some object it planned, or ``inspect``/``tag`` found problems in the gripper;
+* 2: a usage or input error: one line on stderr, no traceback, no output file written;
+* 3: an error inside isf (a bug): one line that says so and how to report it; ``-v`` adds the
+  traceback;
+* 130: interrupted (Ctrl-C): the files of the objects already planned are kept, complete; no
+  partial file is left.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import logging
 import math
+import os
+import signal
 import sys
 import threading
+import traceback
+import warnings
 from pathlib import Path
 
 from . import __version__
-from .exceptions import InvalidInputError, ISFError
-from .planning.planner import BATCH_SIZE
+from .exceptions import InvalidInputError, ISFError, ISFWarning
 
 __all__ = ["main"]
 
-EXIT_OK, EXIT_NOTHING_FOUND, EXIT_USAGE = 0, 1, 2
+EXIT_OK, EXIT_NOTHING_FOUND, EXIT_USAGE, EXIT_BUG, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
+
+REPORT_BUGS_TO = "isf's issue tracker"
+"""Where the exit-3 message asks users to report a bug."""
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -32,21 +46,37 @@ def _parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     p = sub.add_parser("plan", help="plan grasps of an object", description=(
-        "Plan grasps of OBJECT with GRIPPER and write them as JSON. GRIPPER is a bundled name "
+        "Plan grasps of OBJECT (or of what a depth camera saw: --scene) with GRIPPER and write "
+        "them as JSON. GRIPPER is a bundled name "
         "(see 'isf grippers') or a tagged URDF; OBJECT is a mesh or point-cloud file, "
         "shape:NAME (cylinder, box, sphere, capsule, torus) or asset:NAME (e.g. asset:bunny). "
         "Several --object plan one after the other in one run, with the same parameters, and "
         "write one JSON each into --out-dir: the run starts up once (loading isf and its "
         "compiled kernels takes seconds, longer than a plan)."))
     p.add_argument("--gripper", "-g", required=True, help="bundled gripper name or URDF path")
-    p.add_argument("--object", "-o", required=True, action="append", dest="object_specs",
-                   metavar="OBJECT",
+    p.add_argument("--object", "-o", action="append", dest="object_specs", metavar="OBJECT",
                    help="mesh/cloud file, shape:NAME or asset:NAME (repeatable, with --out-dir)")
+    p.add_argument("--scene", default=None, metavar="FILE",
+                   help="instead of --object: what a depth camera saw, a depth image (16-bit PNG "
+                        "or NPY (H, W)) or a point cloud (PLY, PCD, XYZ, NPY (N, 3)); grasps come "
+                        "out in the scene frame (docs/tutorial-depth-camera.md)")
+    p.add_argument("--intrinsics", default=None, metavar="FX,FY,CX,CY",
+                   help="the depth camera's pinhole intrinsics, pixels (needed for a depth image)")
+    p.add_argument("--camera-pose", default=None, metavar="FILE|16 NUMBERS",
+                   help="T_scene_camera, the camera's pose in the scene frame: a .npy or text file "
+                        "of a 4x4 matrix, or 16 comma-separated numbers row by row (default: the "
+                        "scene frame is the camera frame: x right, y down, z forward)")
+    p.add_argument("--depth-scale", type=float, default=None, metavar="S",
+                   help="metres per unit of --scene (default 0.001 for integer depth images, "
+                        "1 otherwise)")
+    p.add_argument("--cloud-frame", choices=("camera", "scene"), default="camera",
+                   help="the frame of a --scene point cloud's coordinates (default camera)")
     p.add_argument("--samples", "-n", type=int, default=60, help="samples to evaluate (default 60)")
     p.add_argument("--sampler", "-s", default="regret", help="sampler name (default regret; see 'isf samplers')")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    p.add_argument("--batch-size", type=int, default=BATCH_SIZE, metavar="B",
-                   help=f"samples fitted at once in lockstep (default {BATCH_SIZE}: the paper's sequential loop)")
+    p.add_argument("--seed", type=int, default=0, help="random seed, >= 0 (default 0)")
+    p.add_argument("--batch-size", type=int, default=None, metavar="B",
+                   help="samples fitted at once in lockstep (default: isf.plan's, one at a time: "
+                        "the paper's sequential loop)")
     p.add_argument("--workers", "-j", type=int, default=1, metavar="W",
                    help="threads that fit, check and repair samples side by side (default 1); the "
                         "sampler then learns each outcome up to 2W-1 samples late")
@@ -61,8 +91,10 @@ def _parser() -> argparse.ArgumentParser:
                    help="keep colliding fits as they are (the paper's Algorithm 3)")
     p.add_argument("--units", choices=("m", "cm", "mm"), default="m", help="units of the object file (default m)")
     p.add_argument("--scale", type=float, default=1.0, help="extra scale factor for the object")
-    p.add_argument("--table", type=float, default=None, metavar="Z",
-                   help="a table plane at height Z (object frame, metres): grasps below it are rejected")
+    p.add_argument("--table", default=None, metavar="Z|auto",
+                   help="a table plane at height Z (object or scene frame, metres): grasps below "
+                        "it are rejected; with --scene, 'auto' finds it (RANSAC) and removes its "
+                        "points from the surface")
     p.add_argument("--top", type=int, default=None, metavar="K", help="keep only the best K grasps in the output")
     p.add_argument("--out", default=None,
                    help="output JSON file of one object (default grasps.json)")
@@ -106,95 +138,289 @@ def _parser() -> argparse.ArgumentParser:
     p = sub.add_parser("inspect", help="show a gripper's joints, limits, contact surfaces and problems")
     p.add_argument("gripper", help="bundled gripper name or URDF path")
     p.set_defaults(run=_cmd_inspect)
+
+    p = sub.add_parser("compile", help="compile the numerical kernels into the cache now", description=(
+        "Compile isf's numerical kernels for this machine into numba's cache (NUMBA_CACHE_DIR "
+        "moves it), as the first 'isf plan' would: for container images and CI. Kernels already "
+        "cached are loaded, not compiled again."))
+    p.add_argument("-q", "--quiet", action="store_true", help="do not count the kernels on stderr")
+    p.set_defaults(run=_cmd_compile)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the command line; returns the exit code."""
+    """Run the command line; returns the exit code (see the module docstring).
+
+    Called without ``argv`` (as the ``isf`` command), a Ctrl-C that comes once the command is
+    done is ignored: its output is complete, and the exit code says how it went.
+    """
+    try:
+        return _run(argv)
+    finally:
+        if argv is None and threading.current_thread() is threading.main_thread():
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _run(argv: list[str] | None) -> int:
     args = _parser().parse_args(argv)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
                         format="%(levelname)s %(name)s: %(message)s")
     try:
-        return args.run(args)
+        with warnings.catch_warnings():
+            warnings.showwarning = _show_warning
+            return args.run(args)
     except ISFError as err:
         print(f"isf: error: {_one_line(err)}", file=sys.stderr)
         return EXIT_USAGE
     except KeyboardInterrupt:
-        print("isf: interrupted", file=sys.stderr)
-        return 130
+        return _interrupted()
     except BrokenPipeError:  # e.g. `isf plan ... | head`: the reader left, not an error of ours
         sys.stderr.close()
         return EXIT_OK
+    except Exception as err:  # anything else is a bug of isf, never "nothing found"
+        if _caused_by_interrupt(err):
+            return _interrupted()
+        if args.verbose:
+            traceback.print_exc(file=sys.stderr)
+        print(f"isf: internal error (a bug in isf {__version__}): {type(err).__name__}: "
+              f"{_one_line(err)[:300]}; please report it on {REPORT_BUGS_TO} with the command "
+              f"that caused it{'' if args.verbose else ' and the traceback of isf -v'}",
+              file=sys.stderr)
+        return EXIT_BUG
 
 
-def _one_line(err: Exception) -> str:
+def _interrupted() -> int:
+    print("isf: interrupted", file=sys.stderr)
+    return EXIT_INTERRUPTED
+
+
+def _exit_interrupted(signum, frame) -> None:
+    """SIGINT handler that ends the process at once with exit code 130."""
+    os.write(2, b"\nisf: interrupted\n" if sys.stderr.isatty() else b"isf: interrupted\n")
+    os._exit(EXIT_INTERRUPTED)
+
+
+def _caused_by_interrupt(err: BaseException) -> bool:
+    """True when a KeyboardInterrupt is in ``err``'s chain: Python reports one raised while a
+    compiled kernel returned as a ``SystemError`` whose context is the interrupt."""
+    seen = set()
+    while err is not None and id(err) not in seen:
+        if isinstance(err, KeyboardInterrupt):
+            return True
+        seen.add(id(err))
+        err = err.__cause__ or err.__context__
+    return False
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """isf's warnings as one line on stderr; others as Python shows them."""
+    if issubclass(category, ISFWarning):
+        print(f"isf: warning: {_one_line(message)}", file=sys.stderr)
+    else:
+        sys.stderr.write(warnings.formatwarning(message, category, filename, lineno, line))
+
+
+def _one_line(err: Exception | Warning | str) -> str:
     return " ".join(str(err).split())
+
+
+class _Interrupts:
+    """Ctrl-C during ``isf plan``: SIGINT is recorded and acted on at the next safe point
+    (after the set-up, between two samples, between two objects, after a file is written), so
+    it never lands inside a compiled kernel, a write, or an import of a library that swallows
+    exceptions while it imports (trimesh does); only the kernel compilation, which can take
+    minutes and writes no output file, is interrupted at once (:meth:`immediate`). Outside the
+    main thread (a test calling :func:`main`) signals cannot be handled and nothing changes."""
+
+    def __init__(self) -> None:
+        self.pending = False
+        self._previous = None
+
+    def __enter__(self) -> _Interrupts:
+        if threading.current_thread() is threading.main_thread():
+            self._previous = signal.signal(signal.SIGINT, self._record)
+        return self
+
+    def _record(self, signum, frame) -> None:
+        self.pending = True
+
+    def check(self) -> None:
+        """Raise KeyboardInterrupt if Ctrl-C was pressed."""
+        if self.pending:
+            raise KeyboardInterrupt
+
+    @contextlib.contextmanager
+    def immediate(self):
+        """A block that Ctrl-C ends at once: ``isf: interrupted``, exit 130, no clean-up.
+
+        Not a KeyboardInterrupt: raised inside code that numba compiles from source with
+        ``exec``, CPython records it as unhandled and ends the process by SIGINT at exit
+        whatever the command returns.
+        """
+        self.check()
+        if self._previous is None:
+            yield
+            return
+        signal.signal(signal.SIGINT, _exit_interrupted)
+        try:
+            yield
+        finally:
+            signal.signal(signal.SIGINT, self._record)
+
+    def __exit__(self, kind, error, trace) -> None:
+        if self._previous is not None:
+            signal.signal(signal.SIGINT, self._previous)
+        if kind is None:
+            self.check()
 
 
 # ----------------------------------------------------------------------------- commands
 def _cmd_plan(args: argparse.Namespace) -> int:
-    from .collision.checker import Plane
-    from .config import FitConfig, config_from_text
-    from .gripper.loading import load_gripper
-    from .object.specs import check_object_spec, open_object
+    """``isf plan``: Ctrl-C is acted on at safe points (:class:`_Interrupts`)."""
+    with _Interrupts() as interrupts:
+        from .collision.checker import Plane
+        from .config import FitConfig, config_from_text
+        from .gripper.loading import load_gripper
+        from .object.specs import check_object_spec, open_object
+        from .planning.planner import BATCH_SIZE
+        from .repair.clearance import RepairConfig
+        from .samplers import get_sampler
+
+        args.batch_size = BATCH_SIZE if args.batch_size is None else args.batch_size
+        _check_inputs(args)
+        outputs = _output_paths(args.object_specs, args.out, args.out_dir)
+        if args.top is not None and args.top < 1:
+            raise InvalidInputError(f"--top must be >= 1, got {args.top}")
+        if args.seed < 0:
+            raise InvalidInputError(f"--seed must be >= 0, got {args.seed}")
+        for flag, value in (("--samples", args.samples), ("--batch-size", args.batch_size),
+                            ("--workers", args.workers)):
+            if value < 1:
+                raise InvalidInputError(f"{flag} must be >= 1, got {value}")
+        if args.batch_size > 1 and args.workers > 1:
+            raise InvalidInputError("--batch-size and --workers cannot both exceed 1: choose lockstep "
+                                    "batches or worker threads")
+        if args.no_repair and args.repair:
+            raise InvalidInputError("--no-repair and --repair exclude each other: drop one")
+        config = config_from_text(FitConfig, _pairs(args.fit, "--fit"))
+        repair = False if args.no_repair else (
+            config_from_text(RepairConfig, _pairs(args.repair, "--repair")) if args.repair else True)
+        gripper = load_gripper(args.gripper)
+        for spec in args.object_specs[1:]:  # a missing file or unknown name fails before any plan
+            check_object_spec(spec)
+        if args.scene is not None:
+            first, obstacles = _open_scene(args), []  # the scene carries its table
+        else:
+            first = open_object(args.object_specs[0], units=args.units, scale=args.scale)
+            obstacles = [Plane.table(args.table)] if args.table is not None else []
+        get_sampler(args.sampler)  # a bad name fails before the kernels load
+        with interrupts.immediate():
+            _compile_kernels(quiet=args.quiet)
+        show = not args.quiet and sys.stderr.isatty()
+        found_everywhere = True
+        for index, (spec, out) in enumerate(zip(args.object_specs, outputs)):
+            interrupts.check()
+            found = _plan_one(args, index, spec, out, first, gripper, config, repair, obstacles,
+                              _ProgressBar(sys.stderr) if show else None, interrupts)
+            first = None
+            found_everywhere = found_everywhere and found
+        return EXIT_OK if found_everywhere else EXIT_NOTHING_FOUND
+
+
+_TABLE_LIMIT = 1e3
+"""Largest ``--table`` height accepted, metres from the object frame's origin."""
+
+
+def _check_inputs(args: argparse.Namespace) -> None:
+    """Check ``--object``/``--scene`` and ``--table`` of ``isf plan``; a scene becomes the one
+    object spec, and a numeric ``--table`` a float.
+
+    Raises:
+        InvalidInputError: neither or both of ``--object`` and ``--scene``; camera options
+            without ``--scene``; ``--table`` neither a number nor (with ``--scene``) ``auto``.
+    """
+    if (args.scene is None) == (not args.object_specs):
+        raise InvalidInputError("isf plan needs --object OBJECT (a mesh, cloud or shape) or "
+                                "--scene FILE (what a depth camera saw), not both")
+    camera = [flag for flag, value in (("--intrinsics", args.intrinsics),
+                                       ("--camera-pose", args.camera_pose),
+                                       ("--depth-scale", args.depth_scale))
+              if value is not None] + (["--cloud-frame"] if args.cloud_frame != "camera" else [])
+    if args.scene is None and camera:
+        raise InvalidInputError(f"{', '.join(camera)} describe a --scene: pass --scene FILE, or "
+                                "drop them to plan on an --object")
+    if args.scene is not None:
+        if args.units != "m" or args.scale != 1.0:
+            raise InvalidInputError("--units and --scale apply to --object; a --scene's units "
+                                    "are set by --depth-scale")
+        args.object_specs = [args.scene]
+    if args.table is None or (args.table == "auto" and args.scene is not None):
+        return
+    try:
+        args.table = float(args.table)
+    except ValueError:
+        hint = "a height in metres or 'auto'" if args.scene is not None else \
+            "a height in metres ('auto' needs --scene)"
+        raise InvalidInputError(f"--table {args.table!r} must be {hint}") from None
+    if not abs(args.table) <= _TABLE_LIMIT:
+        raise InvalidInputError(f"--table {args.table:g} is not a height within {_TABLE_LIMIT:g} m "
+                                "of the object's frame: pass the table's height in metres")
+
+
+def _open_scene(args: argparse.Namespace):
+    """The :class:`isf.scene.Scene` of ``isf plan --scene``."""
+    from .scene import load_scene
+
+    return load_scene(args.scene, intrinsics=args.intrinsics, T_scene_camera=args.camera_pose,
+                      depth_scale=args.depth_scale, cloud_frame=args.cloud_frame,
+                      table=args.table)
+
+
+def _plan_one(args, index, spec, out, obj, gripper, config, repair, obstacles, bar,
+              interrupts: _Interrupts) -> bool:
+    """Plan one object of ``isf plan`` and write its file; True when a valid grasp was found.
+
+    ``obj`` is the object already opened, or None to open ``spec``; SIGINT is acted on between
+    samples (``interrupts``)."""
+    from .object.specs import open_object
     from .planning.plan_json import write_plan_json
     from .planning.planner import plan
-    from .repair.clearance import RepairConfig
-    from .samplers import get_sampler
 
-    outputs = _output_paths(args.object_specs, args.out, args.out_dir)
-    if args.top is not None and args.top < 1:
-        raise InvalidInputError(f"--top must be >= 1, got {args.top}")
-    for flag, value in (("--samples", args.samples), ("--batch-size", args.batch_size),
-                        ("--workers", args.workers)):
-        if value < 1:
-            raise InvalidInputError(f"{flag} must be >= 1, got {value}")
-    if args.batch_size > 1 and args.workers > 1:
-        raise InvalidInputError("--batch-size and --workers cannot both exceed 1: choose lockstep "
-                                "batches or worker threads")
-    if args.no_repair and args.repair:
-        raise InvalidInputError("--no-repair and --repair exclude each other: drop one")
-    config = config_from_text(FitConfig, _pairs(args.fit, "--fit"))
-    repair = False if args.no_repair else (
-        config_from_text(RepairConfig, _pairs(args.repair, "--repair")) if args.repair else True)
-    gripper = load_gripper(args.gripper)
-    for spec in args.object_specs[1:]:  # a missing file or unknown name fails before any plan
-        check_object_spec(spec)
-    first = open_object(args.object_specs[0], units=args.units, scale=args.scale)
-    obstacles = [Plane.table(args.table)] if args.table is not None else []
-    get_sampler(args.sampler)  # a bad name fails before the kernels load
-    _compile_kernels(quiet=args.quiet)
-    show = not args.quiet and sys.stderr.isatty()
-    found_everywhere = True
-    for index, (spec, out) in enumerate(zip(args.object_specs, outputs)):
-        progress = _ProgressBar(sys.stderr) if show else None
+    def progress(done: int, total: int, grasp) -> None:
+        interrupts.check()
+        if bar is not None:
+            bar(done, total, grasp)
+
+    n_objects = len(args.object_specs)
+    try:
         try:
             # the others load in turn: one object (and what its plan builds) in memory at a time
-            obj = first if index == 0 else open_object(spec, units=args.units, scale=args.scale)
-            first = None
+            if obj is None:
+                obj = open_object(spec, units=args.units, scale=args.scale)
             result = plan(gripper, obj, samples=args.samples, sampler=args.sampler,
                           seed=args.seed, batch_size=args.batch_size, workers=args.workers,
                           config=config, obstacles=obstacles, repair_collisions=repair,
                           progress=progress)
-        except ISFError as err:
-            if len(outputs) == 1:
-                raise
-            raise ISFError(f"{spec}: {_one_line(err)} (the {index} object(s) before it are "
-                           "planned, their files complete)") from err
         finally:
-            if progress:
-                progress.close()
+            if bar is not None:
+                bar.close()
         out.parent.mkdir(exist_ok=True)  # --out-dir: made once there is a plan to write
         write_plan_json(result, out, top=args.top)
-        if not args.quiet:
-            print(_summary(result, args.top or 10))
-        s = result.stats
-        written = len(result.grasps) if args.top is None else min(args.top, len(result.grasps))
-        print(f"{s.collision_free}/{s.samples} collision-free grasps in {s.total_time:.2f} s; "
-              f"wrote {written} grasps to {out.resolve()}", flush=True)
-        found_everywhere = found_everywhere and s.collision_free > 0
-        del obj, result
-    return EXIT_OK if found_everywhere else EXIT_NOTHING_FOUND
+    except ISFError as err:
+        if n_objects == 1:
+            raise
+        raise ISFError(f"{spec}: {_one_line(err)} (the {index} object(s) before it are "
+                       "planned, their files complete)") from err
+    if not args.quiet:
+        print(_summary(result, args.top or 10))
+    s = result.stats
+    written = len(result.grasps) if args.top is None else min(args.top, len(result.grasps))
+    found = f"{s.valid}/{s.samples} valid grasps" if s.valid else "no valid grasp found: 0/" \
+        f"{s.samples} valid"
+    print(f"{found} (collision-free, every contact surface touching; {s.collision_free} "
+          f"collision-free) in {s.total_time:.2f} s; wrote {written} grasps to {out.resolve()}",
+          flush=True)
+    return s.valid > 0
 
 
 def _output_paths(specs: list[str], out: str | None, out_dir: str | None) -> list[Path]:
@@ -204,7 +430,11 @@ def _output_paths(specs: list[str], out: str | None, out_dir: str | None) -> lis
     Raises:
         InvalidInputError: both or, for several objects, neither of ``out`` and ``out_dir``;
             a missing folder above them; two objects with the same output name.
+        OutputFileError: an output path that cannot become a regular file
+            (:func:`isf.output_files.check_output_path`).
     """
+    from .output_files import check_output_path
+
     if out is not None and out_dir is not None:
         raise InvalidInputError("--out and --out-dir exclude each other: --out names the file of "
                                 "one object, --out-dir a folder for one file per object")
@@ -212,11 +442,7 @@ def _output_paths(specs: list[str], out: str | None, out_dir: str | None) -> lis
         if len(specs) > 1:
             raise InvalidInputError(f"{len(specs)} objects need --out-dir DIR (one JSON per "
                                     "object); --out names the file of one object")
-        path = Path(out or "grasps.json")
-        if not path.parent.is_dir():
-            raise InvalidInputError(f"output folder {path.parent} does not exist: create it or "
-                                    "pass another --out")
-        return [path]
+        return [check_output_path(out or "grasps.json", "--out file")]
     folder = Path(out_dir)
     if not folder.parent.is_dir() or (folder.exists() and not folder.is_dir()):
         raise InvalidInputError(f"--out-dir {folder} cannot be a folder (its parent is missing "
@@ -228,6 +454,9 @@ def _output_paths(specs: list[str], out: str | None, out_dir: str | None) -> lis
             raise InvalidInputError(f"objects {seen[name]!r} and {spec!r} would both write "
                                     f"{folder / name}: plan them in separate runs or rename a file")
         seen[name] = spec
+    if folder.is_dir():  # else it is created once there is a plan to write
+        for name in seen:
+            check_output_path(folder / name, "output file")
     return [folder / name for name in seen]
 
 
@@ -243,24 +472,21 @@ def _output_name(spec: str) -> str:
 
 def _compile_kernels(quiet: bool) -> None:
     """Compile (or load) the kernels before planning, so the plan's times leave them out; when
-    that takes more than a few seconds (a first run: loading compiled kernels takes about one),
-    say what is happening."""
+    kernels must be compiled (the first run after installing or upgrading isf), count them on
+    stderr."""
     from .warming import warm_up
 
-    notice = threading.Timer(_COMPILE_NOTICE_AFTER, lambda: print(
-        "isf: compiling its numerical kernels for this machine (once after installing or "
-        "upgrading isf: about a minute and a half) ...", file=sys.stderr, flush=True))
-    if not quiet:
-        notice.start()
-    try:
-        warm_up()
-    finally:
-        notice.cancel()
+    warm_up(progress=None if quiet else _compile_progress)
 
 
-_COMPILE_NOTICE_AFTER = 4.0
-"""Seconds of warm-up after which ``isf plan`` says it is compiling (loading the compiled
-kernels takes about a second; compiling them, tens of seconds)."""
+def _compile_progress(done: int, total: int) -> None:
+    """Show that ``done`` of ``total`` kernels are compiled: one line rewritten on a terminal,
+    a line per tenth otherwise."""
+    text = f"isf: compiling its numerical kernels for this machine (once): {done}/{total}"
+    if sys.stderr.isatty():
+        print(f"\r{text}", end="\n" if done == total else "", file=sys.stderr, flush=True)
+    elif done * 10 // total > (done - 1) * 10 // total:  # at 0 and at each tenth
+        print(text, file=sys.stderr, flush=True)
 
 
 def _cmd_grippers(args: argparse.Namespace) -> int:
@@ -294,8 +520,14 @@ def _pairs(words: list[str], what: str) -> dict[str, str]:
 
 def _cmd_tag(args: argparse.Namespace) -> int:
     from .exceptions import InvalidInputError
+    from .output_files import check_output_path
     from .registration import ContactSpec, suggest_approach, suggest_contacts, tag_urdf
+    from .registration.preview import check_export_path
 
+    if Path(args.out).parent.is_dir():  # both refused before anything is written
+        check_output_path(args.out, "--out file")
+    if args.export:
+        check_export_path(args.export)
     package_dirs = _pairs(args.package, "--package") or None
     try:
         initial = {k: float(v) for k, v in _pairs(args.initial, "--initial").items()} or None
@@ -340,13 +572,13 @@ class _ProgressBar:
     """A one-line progress bar on a terminal stream."""
 
     def __init__(self, stream, width: int = 30):
-        self.stream, self.width, self.free = stream, width, 0
+        self.stream, self.width, self.valid = stream, width, 0
 
     def __call__(self, done: int, total: int, grasp) -> None:
-        self.free += grasp.collision_free
+        self.valid += grasp.valid
         filled = round(self.width * done / total)
         bar = "#" * filled + "." * (self.width - filled)
-        self.stream.write(f"\r[{bar}] {done}/{total} samples, {self.free} collision-free")
+        self.stream.write(f"\r[{bar}] {done}/{total} samples, {self.valid} valid")
         self.stream.flush()
 
     def close(self) -> None:
@@ -354,15 +586,30 @@ class _ProgressBar:
         self.stream.flush()
 
 
+def _verdict(grasp) -> str:
+    """``valid``, ``collides`` or ``no contact`` (collision-free, a surface not touching)."""
+    return "valid" if grasp.valid else "collides" if not grasp.collision_free else "no contact"
+
+
 def _summary(result, top: int) -> str:
-    head = f"{'rank':>4}  {'free':<5} {'dist mm':>8} {'misalign deg':>12} {'clear mm':>9}  {'position (m)':<26} joints"
+    head = (f"{'rank':>4}  {'grasp':<10} {'dist mm':>8} {'misalign deg':>12} {'clear mm':>9}  "
+            f"{'position (m)':<26} joints")
     lines = [f"{result.gripper} on {result.object}, sampler {result.sampler}, seed {result.seed}", head]
     for rank, g in enumerate(result.grasps[:top], start=1):
         p = g.T_object_gripper[:3, 3]
         joints = " ".join(f"{k}={v:.4g}" for k, v in g.joints.items())
         lines.append(
-            f"{rank:>4}  {'yes' if g.collision_free else 'no':<5} {g.fit.mean_distance * 1e3:>8.3f} "
+            f"{rank:>4}  {_verdict(g):<10} {g.fit.mean_distance * 1e3:>8.3f} "
             f"{math.degrees(g.fit.normal_misalignment):>12.2f} {g.collision.clearance * 1e3:>9.2f}  "
             f"{p[0]:+.4f} {p[1]:+.4f} {p[2]:+.4f}     {joints}"
         )
     return "\n".join(lines)
+
+
+def _cmd_compile(args: argparse.Namespace) -> int:
+    from .warming import warm_up
+
+    seconds = warm_up(progress=None if args.quiet else _compile_progress)
+    if not args.quiet:
+        print(f"isf: kernels compiled or loaded in {seconds:.1f} s", file=sys.stderr)
+    return EXIT_OK

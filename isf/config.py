@@ -22,11 +22,47 @@ The paper gives ``L = 4``, ``I0 = 200``, ``eps0 = 0.008``, ``delta_e = 1e-5`` an
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass, fields
+from numbers import Integral, Real
 
 from .exceptions import ConfigError
 
-__all__ = ["FitConfig", "config_from_text"]
+__all__ = ["LEVELS_LIMIT", "MAX_ITERATIONS_LIMIT", "FitConfig", "check_field", "config_from_text"]
+
+MAX_ITERATIONS_LIMIT = 10_000
+"""Largest :attr:`FitConfig.max_iterations` (50 times the paper's 200): a fit keeps a history
+row per iteration, for every sample in flight."""
+
+LEVELS_LIMIT = 16
+"""Largest :attr:`FitConfig.levels`: beyond about 10 levels every surface keeps a single point."""
+
+
+def check_field(owner: str, name: str, value, *, integer: bool = False, flag: bool = False,
+                low: float | None = None, above: float | None = None,
+                high: float | None = None) -> None:
+    """Raise :class:`ConfigError` unless ``value`` is a parameter of the kind asked for.
+
+    Args:
+        owner, name: the dataclass and field, for the message (``FitConfig.levels``).
+        value: the value to check.
+        integer: an integer (not a bool); else a finite real number (not a bool).
+        flag: a bool (the bounds are ignored).
+        low: at least this; above: more than this; high: at most this.
+    """
+    where = f"{owner}.{name}"
+    if flag:
+        if not isinstance(value, bool):
+            raise ConfigError(f"{where} must be True or False, got {value!r}")
+        return
+    bounds = [f"{sign} {bound:g}" for sign, bound in ((">=", low), (">", above), ("<=", high))
+              if bound is not None]
+    wanted = " ".join(["an integer" if integer else "a finite number", " and ".join(bounds)])
+    kind = Integral if integer else Real
+    if (isinstance(value, bool) or not isinstance(value, kind) or not math.isfinite(value)
+            or (low is not None and not value >= low) or (above is not None and not value > above)
+            or (high is not None and not value <= high)):
+        raise ConfigError(f"{where} must be {wanted}, got {value!r}")
 
 PAPER_PAIRS = 512
 """Pairs the paper's ``delta_e`` refers to (two fingers x 256 points)."""
@@ -83,25 +119,22 @@ class FitConfig:
     min_pairs: int = 6
 
     def __post_init__(self) -> None:
-        positive_int = ("levels", "max_iterations", "max_ipfo_iterations", "min_pairs")
-        for name in positive_int:
-            value = getattr(self, name)
-            if not isinstance(value, int) or value < 1:
-                raise ConfigError(f"FitConfig.{name} must be an integer >= 1, got {value!r}")
-        non_negative = ("tolerance", "delta_e", "normal_weight", "finger_damping", "outlier_floor")
-        for name in non_negative:
-            value = getattr(self, name)
-            if not value >= 0.0:
-                raise ConfigError(f"FitConfig.{name} must be >= 0, got {value!r}")
+        """Refuse values of the wrong type, not finite, or out of range (:class:`ConfigError`)."""
+        highs = {"levels": LEVELS_LIMIT, "max_iterations": MAX_ITERATIONS_LIMIT,
+                 "max_ipfo_iterations": 1000}
+        for name in ("levels", "max_iterations", "max_ipfo_iterations", "min_pairs"):
+            check_field("FitConfig", name, getattr(self, name), integer=True, low=1,
+                        high=highs.get(name))
+        for name in ("tolerance", "delta_e", "normal_weight", "finger_damping", "outlier_floor"):
+            check_field("FitConfig", name, getattr(self, name), low=0.0)
         if self.outlier_scope not in ("surface", "fit"):
             raise ConfigError(
                 f"FitConfig.outlier_scope must be 'surface' or 'fit', got {self.outlier_scope!r}")
-        positive = ("max_rotation_step", "max_revolute_step", "outlier_factor", "contact_distance",
-                    "max_normal_angle")
-        for name in positive:
-            value = getattr(self, name)
-            if not value > 0.0:
-                raise ConfigError(f"FitConfig.{name} must be > 0, got {value!r}")
+        for name in ("max_rotation_step", "max_revolute_step", "outlier_factor", "contact_distance",
+                     "max_normal_angle"):
+            check_field("FitConfig", name, getattr(self, name), above=0.0)
+        for name in ("reject_duplicates", "lock_fingers"):
+            check_field("FitConfig", name, getattr(self, name), flag=True)
 
     @property
     def ipfo_tolerance(self) -> float:
@@ -115,6 +148,8 @@ class FitConfig:
     @classmethod
     def from_dict(cls, values: dict) -> FitConfig:
         """Build from a dict, rejecting unknown keys with the list of valid ones."""
+        if not isinstance(values, dict):
+            raise ConfigError(f"{cls.__name__}.from_dict takes a dict, got {type(values).__name__}")
         _reject_unknown(cls, values)
         return cls(**values)
 

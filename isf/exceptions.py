@@ -31,6 +31,8 @@ __all__ = [
     "MeshNotFoundError",
     "ModelBuildError",
     "ObjectLoadError",
+    "ObjectSizeWarning",
+    "OutputFileError",
     "PluginLoadError",
     "QPStepError",
     "RegistrationError",
@@ -262,6 +264,20 @@ class PluginLoadError(ISFError):
         super().__init__(message)
 
 
+# ------------------------------------------------------------------ output files
+class OutputFileError(ISFError):
+    """An output file cannot be written where it was asked for (a folder, a symbolic link, a
+    FIFO or device, a folder that does not exist or cannot be written, a full disk).
+
+    Attributes:
+        path: the output file concerned.
+    """
+
+    def __init__(self, message: str, *, path: str | Path):
+        self.path = Path(path)
+        super().__init__(message)
+
+
 # ------------------------------------------------------------------ fetched assets
 class AssetFetchError(ISFError):
     """A pinned wheel could not be downloaded or did not hold the expected files.
@@ -320,3 +336,8 @@ class QPStepError(ISFError):
 
 class ISFWarning(UserWarning):
     """Base class of isf's warnings."""
+
+
+class ObjectSizeWarning(ISFWarning):
+    """The object is far outside what the gripper can span: smaller than its smallest opening or
+    larger than its largest in every direction (often a file in millimetres read as metres)."""

@@ -8,9 +8,10 @@ correspondence filters (:mod:`isf.fitting.correspondence`), the finger step's ac
 a kernel at its first call and caches the machine code on disk (in the package's
 ``__pycache__`` folders, or in numba's user cache when those are read-only;
 ``NUMBA_CACHE_DIR`` moves it; :mod:`isf.compiled.cache` drops cached kernels whose sources
-changed, or the sources of the modules they use). So the first run after installing or
-upgrading isf compiles them (about a minute on a 2-core machine, compiling the engine's and
-the checks' kernels in two processes), and later runs load them in about a second.
+changed, or the sources of the modules they use, and those it cannot load). So the first
+run after installing or upgrading isf compiles them (about 100 s of CPU for the engine's
+kernels and 90 s for the checks' and the repair's, compiled side by side on a machine with two
+cores: docs/benchmarks.md, "First run"), and later runs load them in about a second.
 
 :func:`warm_up` compiles (or loads) every kernel on tiny inputs of the types the engine
 passes, so that the cost lands where the caller wants it: ``isf plan`` calls it before
@@ -20,18 +21,25 @@ planning (and says so when it takes a while), the benchmark scripts before timin
 from __future__ import annotations
 
 import os
-import subprocess
 import sys
+import threading
 import time
+from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 import trimesh
+from numba.core import event
+from numba.core.dispatcher import Dispatcher
 
 from .collision.checker import CollisionChecker
 from .collision.convex_elements import ConvexElements
-from .collision.kernel import check_elements
 from .collision.voxels import SurfaceVoxels
+from .compiled.cache import cache_folder
+from .compiled.healing import logger
+from .compiled.lock import compile_lock
+from .compiled.workers import compiled_name, start_worker
 from .fitting.correspondence import match
 from .fitting.fit import fit_many
 from .gripper.model import ContactSurface, Gripper, LinkGeometry
@@ -42,6 +50,7 @@ from .search.nearest import NearestPoints
 from .search.point_grid import PointGrid
 
 __all__ = ["warm_up"]
+
 
 
 def _tiny_gripper() -> Gripper:
@@ -81,7 +90,7 @@ def _check_collisions() -> None:
     ClearanceRepair(gripper, obj).repair(T, np.zeros(1))  # the repair's clearance rows
 
 
-def warm_up() -> float:
+def warm_up(progress: Callable[[int, int], None] | None = None) -> float:
     """Compile, or load from the cache, every compiled kernel of isf; returns the seconds taken.
 
     It fits a one-joint gripper onto a small plane (the engine's own calls, so its own
@@ -89,29 +98,113 @@ def warm_up() -> float:
     and for joints without compiled kinematics), asks for nearest points as the repair does,
     runs the repair's convex-element test and row selection, the voxel
     tests, collision checks of a convex and a non-convex element against a mesh, apart and
-    pressed in, and the repair of the pressed-in state. When the kernels of the checks and the
-    repair are not compiled yet and the machine has a second core, a second process compiles
-    them (into the same cache) while this one compiles the engine's.
+    pressed in, and the repair of the pressed-in state.
+
+    When kernels must be compiled: one process at a time compiles into a cache
+    (``isf.compiled.lock.compile_lock``; another waits, then loads); on a machine with a
+    second core a worker process (``isf.compiled.workers``, ended if this one dies)
+    compiles the checks' and the repair's kernels while this one compiles the engine's; and
+    ``progress(done, total)`` is called with ``done`` 0 and then as each kernel is
+    compiled, ``total`` being the number of kernels not found in the cache (never called
+    when all load from it).
     """
     start = time.perf_counter()
-    helper = None
-    if (os.cpu_count() or 1) > 1 and not _cached(check_elements):
-        helper = subprocess.Popen([sys.executable, "-c", "from isf.warming import _warm_checks; _warm_checks()"],
-                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    _warm_engine()
-    if helper is not None:
-        helper.wait()  # its kernels load from the cache below (or compile here, had it failed)
-    _warm_checks()
+    folder = cache_folder(Path(__file__).parent / "__init__.py")
+    with compile_lock(folder, waiting=lambda: logger.info(
+            "waiting for another process compiling isf's kernels into %s", folder)):
+        pending = {compiled_name(kernel) for kernel in _kernels() if not _cached(kernel)}
+        if pending:
+            _compile(pending, progress)
+        for part in _PARTS:
+            part()  # loads what the workers compiled (or compiles what one failed to)
     return time.perf_counter() - start
 
 
+_NOT_WARMED = frozenset({
+    # called only from Python by the moment form's reference paths (isf.fitting._moments,
+    # isf.fitting._palm_step), never by a fit or a plan
+    "isf.fitting.moment_kernels.palm_motions", "isf.fitting.moment_kernels.palm_systems",
+})
+"""The kernels of the loaded modules that :func:`warm_up` leaves to their first call."""
+
+
+def _kernels() -> list:
+    """The numba dispatchers of isf's loaded modules that :func:`warm_up` compiles: those that
+    compile on their own (not those numba inlines into their callers), but for
+    :data:`_NOT_WARMED`, each once."""
+    found = {}
+    for name, module in list(sys.modules.items()):
+        if name == "isf" or name.startswith("isf."):
+            for value in list(vars(module).values()):
+                if (isinstance(value, Dispatcher) and value.targetoptions.get("inline") != "always"
+                        and compiled_name(value) not in _NOT_WARMED):
+                    found[id(value)] = value
+    return list(found.values())
+
+
 def _cached(kernel) -> bool:
-    """Whether numba's disk cache holds compiled code of ``kernel`` for this source (False when
-    that cannot be told)."""
+    """Whether numba's disk cache holds compiled code of ``kernel`` for this source (True when
+    that cannot be told: the count of kernels to compile then leaves it out)."""
     try:
         return bool(kernel._cache._cache_file._load_index())
-    except Exception:  # numba internals moved: assume cached, so nothing runs twice
+    except Exception:  # numba internals moved, or an unreadable index (healed when loaded)
         return True
+
+
+class _Count:
+    """The kernels compiled so far, by name, from this process and its workers."""
+
+    def __init__(self, pending: set[str], progress: Callable[[int, int], None] | None):
+        self.pending, self.progress = pending, progress
+        self.done: set[str] = set()
+        self.lock = threading.Lock()
+        if progress is not None:
+            progress(0, len(pending))
+
+    def add(self, name: str) -> None:
+        with self.lock:
+            if name not in self.pending or name in self.done:
+                return
+            self.done.add(name)
+            if self.progress is not None:
+                self.progress(len(self.done), len(self.pending))
+
+    def read(self, stream) -> None:
+        for line in stream:  # until the worker ends
+            self.add(line.strip())
+
+
+def _compile(pending: set[str], progress: Callable[[int, int], None] | None) -> None:
+    """Compile the kernels of every part of the warm-up: the first here, the others in worker
+    processes while cores allow, counting ``pending`` down through ``progress``."""
+    count = _Count(pending, progress)
+
+    class Listener(event.Listener):
+        def on_start(self, event_):
+            pass
+
+        def on_end(self, event_):
+            count.add(compiled_name(event_.data["dispatcher"]))
+
+    workers = [start_worker(f"{__name__}:{part.__name__}")
+               for part in _PARTS[1:(os.cpu_count() or 1)]]
+    readers = [threading.Thread(target=count.read, args=(worker.stdout,), daemon=True)
+               for worker in workers]
+    for reader in readers:
+        reader.start()
+    listener = Listener()
+    event.register("numba:compile", listener)
+    try:
+        for part in _PARTS[:len(_PARTS) - len(workers)]:
+            part()
+        for worker, reader in zip(workers, readers):
+            worker.wait()
+            reader.join()
+    finally:
+        event.unregister("numba:compile", listener)
+        for worker in workers:  # a worker still running here (an exception above) ends now
+            worker.stdin.close()
+            worker.wait()
 
 
 def _warm_engine() -> None:
@@ -145,3 +238,8 @@ def _warm_checks() -> None:
     voxels = SurfaceVoxels(box.vertices, box.faces)  # the collision checks' voxels
     voxels.clear(box.vertices, box.vertices), voxels.distance_below(box.vertices)
     _check_collisions()
+
+
+_PARTS = (_warm_engine, _warm_checks)
+"""The warm-up's parts, each compiling kernels the others do not need: with a worker per
+extra core, the first runs in this process and the last ones in the workers."""

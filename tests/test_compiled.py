@@ -21,10 +21,12 @@ def signatures():
 
 warm_up()
 before = signatures()
+from isf.warming import _cached, _kernels
+uncached = sorted(k.py_func.__module__ + "." + k.py_func.__name__ for k in _kernels() if not _cached(k))
 cylinder = isf.open_object("shape:cylinder")
 isf.plan(isf.load_gripper("paper-parallel"), cylinder, samples=6, seed=0)
 isf.plan(isf.load_gripper("three-finger"), cylinder, samples=6, seed=0, repair_collisions=True)
-print(json.dumps({"before": before, "after": signatures()}))
+print(json.dumps({"before": before, "after": signatures(), "uncached": uncached}))
 """
 
 
@@ -46,3 +48,17 @@ def test_warm_up_covers_every_kernel_call_of_a_plan():
     }
     assert entry_points <= {name for name, n in before.items() if n}  # compiled by warm_up
     assert after == before  # and a plan compiled nothing more
+    # every kernel that warm_up counts in its progress (those not cached yet) is in the cache
+    # after it: a first run's count reaches its total
+    assert counts["uncached"] == []
+
+
+def test_two_processes_warming_up_at_once_both_succeed():
+    # one compiles (or loads) while the other waits on the cache's lock, then loads
+    code = "from isf.warming import warm_up; warm_up(); print('warm')"
+    runs = [subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True) for _ in range(2)]
+    for run in runs:
+        out, err = run.communicate(timeout=1800)
+        assert run.returncode == 0, err
+        assert out.strip() == "warm" and "Traceback" not in err

@@ -332,3 +332,13 @@ def test_every_error_class_is_exported_at_the_top_level():
         value = getattr(exceptions, name)
         if isinstance(value, type) and issubclass(value, (isf.ISFError, isf.ISFWarning)):
             assert getattr(isf, name) is value, f"isf.{name} is not isf.exceptions.{name}"
+
+
+def test_output_file_error_keeps_its_path_across_processes(tmp_path):
+    from isf.exceptions import OutputFileError
+    from isf.output_files import check_output_path
+
+    with pytest.raises(OutputFileError) as caught:
+        check_output_path(tmp_path)
+    copy = _round_trip(caught.value)
+    assert copy.path == tmp_path and "is a folder" in str(copy)

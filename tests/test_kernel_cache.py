@@ -1,11 +1,18 @@
-"""isf.compiled.cache: cached kernels are dropped when a module they depend on changes."""
+"""isf's kernel cache: kernels are dropped when a module they depend on changes (isf.compiled.cache)
+or when their cached files cannot be loaded (isf.compiled.healing); one process compiles at a
+time (isf.compiled.lock); compiling workers die with their parent (isf.compiled.workers)."""
 
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
 import textwrap
+import time
+from pathlib import Path
+
+import pytest
 
 from isf.compiled.cache import RECORD, module_digests, module_sources, refresh
 
@@ -134,3 +141,93 @@ def test_a_kernel_runs_the_new_code_of_a_kernel_it_calls_from_another_module(tmp
     os.utime(callee, (stamp, stamp))
     second = subprocess.run(run, env=env, capture_output=True, text=True, check=True)
     assert second.stdout.strip() == "2"
+
+
+_DOUBLER = {
+    "__init__": """
+        from isf.compiled.kernels import kernel
+        from isf.compiled.leaf import leaf
+
+        @leaf
+        def twice(x):
+            return 2.0 * x
+
+        @kernel
+        def f(x):
+            return twice(x) + 1.0
+    """,
+}
+
+
+def _run(tmp_path, code: str, cache) -> subprocess.CompletedProcess:
+    env = {**os.environ, "PYTHONPATH": str(tmp_path), "NUMBA_CACHE_DIR": str(cache)}
+    return subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                          check=True)
+
+
+@pytest.mark.parametrize("part", ["kernel file", "index"])
+def test_a_truncated_cache_entry_is_dropped_and_compiled_again(tmp_path, part):
+    write_package(tmp_path, _DOUBLER)
+    cache, run = tmp_path / "cache", ("import pkg; print(pkg.f(3.0), "
+                                       "sum(pkg.f.stats.cache_misses.values()))")
+    assert _run(tmp_path, run, cache).stdout.split()[0] == "7.0"  # 2 * 3 + 1
+    pattern = "__init__.f-*.py*.1.nbc" if part == "kernel file" else "__init__.f-*.py*.nbi"
+    (entry,) = cache.rglob(pattern)
+    entry.write_bytes(entry.read_bytes()[:len(entry.read_bytes()) // 3])  # a write cut short
+    healed = _run(tmp_path, run, cache)
+    assert healed.stdout.split()[0] == "7.0"
+    notice = [line for line in healed.stderr.splitlines() if "unreadable" in line]
+    assert len(notice) == 1 and " f (" in notice[0], healed.stderr  # one line, naming the kernel
+    again = _run(tmp_path, run, cache)  # compiled and saved again: loaded, silently
+    assert again.stdout.split() == ["7.0", "0"] and again.stderr == ""
+
+
+def test_a_second_process_waits_for_the_compiling_one_and_loads_its_kernels(tmp_path):
+    write_package(tmp_path, _DOUBLER)
+    cache = tmp_path / "cache"
+    code = """
+import sys, time
+from pathlib import Path
+from isf.compiled.lock import compile_lock
+with compile_lock(Path(sys.argv[1])):
+    print("locked", flush=True)
+    time.sleep(float(sys.argv[2]))  # long enough for the other process to try
+    import pkg
+    print(pkg.f(3.0), sum(pkg.f.stats.cache_misses.values()), flush=True)
+"""
+    env = {**os.environ, "PYTHONPATH": str(tmp_path), "NUMBA_CACHE_DIR": str(cache)}
+    first = subprocess.Popen([sys.executable, "-c", code, str(cache), "1.0"], env=env,
+                             stdout=subprocess.PIPE, text=True)
+    assert first.stdout.readline().strip() == "locked"
+    second = subprocess.run([sys.executable, "-c", code, str(cache), "0"], env=env,
+                            capture_output=True, text=True, check=True)
+    first_out, _ = first.communicate(timeout=120)
+    assert first.returncode == 0
+    assert first_out.split() == ["7.0", "1"]  # compiled f
+    assert second.stdout.split() == ["locked", "7.0", "0"]  # waited, then loaded f
+
+
+def test_a_worker_dies_with_its_parent(tmp_path):
+    (tmp_path / "forever.py").write_text("import time\ndef run():\n    time.sleep(600)\n")
+    parent = subprocess.Popen(
+        [sys.executable, "-c", "import time\nfrom isf.compiled.workers import start_worker\n"
+         "print(start_worker('forever:run').pid, flush=True)\ntime.sleep(600)"],
+        env={**os.environ, "PYTHONPATH": str(tmp_path)}, stdout=subprocess.PIPE, text=True)
+    worker = int(parent.stdout.readline())
+    time.sleep(1.0)  # the worker runs its body
+    assert _alive(worker)
+    parent.send_signal(signal.SIGKILL)
+    parent.wait()
+    deadline = time.monotonic() + 30
+    while _alive(worker) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not _alive(worker)
+
+
+def _alive(pid: int) -> bool:
+    """Whether the process ``pid`` runs (a zombie, dead but not yet reaped, does not)."""
+    try:
+        status = Path(f"/proc/{pid}/status").read_text()
+    except FileNotFoundError:
+        return False
+    return "\nState:\tZ" not in status

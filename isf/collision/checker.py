@@ -82,7 +82,7 @@ import logging
 import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import NamedTuple, Protocol
 
 import coal
 import numpy as np
@@ -108,7 +108,7 @@ from .kernel import (
 from .surface_distance import NEIGHBOURS, TangentPlanes, closed_mesh, mesh_memo
 from .voxels import SurfaceVoxels, kernel_arrays
 
-__all__ = ["CollisionChecker", "CollisionReport", "Plane"]
+__all__ = ["CollisionChecker", "CollisionReport", "HiddenRegion", "Plane"]
 
 logger = logging.getLogger(__name__)
 
@@ -220,6 +220,20 @@ class Plane:
         return points @ self.normal - self.offset
 
 
+class HiddenRegion(Protocol):
+    """A region of the object frame the gripper must not enter, known only by how deep points
+    lie inside it (e.g. :class:`isf.scene.UnseenSpace`, the space behind a camera's view)."""
+
+    name: str
+
+    def depth_inside(self, points: np.ndarray) -> np.ndarray:
+        """Depth of each point (M, 3) inside the region, metres (M,); 0 outside."""
+
+    def way_out(self, points: np.ndarray) -> np.ndarray:
+        """Unit directions (M, 3) along which points (M, 3) inside the region leave it
+        (the collision repair pushes links that way)."""
+
+
 @dataclass(frozen=True)
 class CollisionReport:
     """The verdict of one collision check.
@@ -231,7 +245,8 @@ class CollisionReport:
             the obstacle planes, metres; 0 when touching or penetrating (see the module docs).
         colliding_links: links with an element deeper than the tolerance, in the order of
             ``gripper.geometries``.
-        obstacle: ``"object"`` or the plane's name for the deepest violation; None when collision-free.
+        obstacle: ``"object"``, the plane's name or the hidden region's name for the deepest
+            violation; None when collision-free.
     """
 
     collision_free: bool
@@ -254,6 +269,10 @@ class CollisionChecker:
         obj: the object surface (a mesh or a point cloud with outward normals), object frame.
         obstacles: obstacle half-spaces in the object frame, e.g. ``[Plane.table(z)]``.
         tolerance: penetration depth tolerated before an element collides, metres (>= 0).
+        hidden: a region the gripper must not enter (:class:`HiddenRegion`), e.g. a scene's
+            unseen space; an element's depth in it is the deepest of its surface samples (the
+            samples of the object check, vertices included). A non-contact element inside it
+            makes the clearance 0.
 
     Raises:
         InvalidInputError: a negative or non-finite tolerance, or an obstacle that is not a Plane.
@@ -261,7 +280,7 @@ class CollisionChecker:
     """
 
     def __init__(self, gripper: Gripper, obj: ObjectSurface, *, obstacles: Sequence[Plane] = (),
-                 tolerance: float = 0.002):
+                 tolerance: float = 0.002, hidden: HiddenRegion | None = None):
         if isinstance(tolerance, bool) or not isinstance(tolerance, (int, float, np.integer, np.floating)) \
                 or not (np.isfinite(tolerance) and tolerance >= 0):
             raise InvalidInputError(f"collision tolerance must be a finite depth >= 0 in metres, "
@@ -282,8 +301,12 @@ class CollisionChecker:
                 f"a geometry belongs to link {link!r}, which the model lacks; fix its link name"
                 for link in missing])
         self._frame_ids = np.array([gripper.model.getFrameId(link) for link in links])
-        self._obstacle_names = [p.name for p in self.obstacles] + ["object"]
+        self.hidden = hidden
+        self._obstacle_names = [p.name for p in self.obstacles] + ["object"] + (
+            [] if hidden is None else [hidden.name])
         self._elements, packed, state = _prepared(gripper, links)
+        if hidden is not None:
+            self._hidden_samples = _HiddenSamples.of(self._elements)
         self._triangles, self._triangle_start = packed["_triangles"], packed["_triangle_start"]
         self._surface = _object_surface(obj, state)
         self._points = np.asarray(obj.points, dtype=float)  # probes for object points inside elements
@@ -324,6 +347,8 @@ class CollisionChecker:
         self.estimates += estimates
         if clearance > 0.0 and len(candidates):
             clearance = min(clearance, self._clearance_of(candidates, owner, nearest, poses))
+        if self.hidden is not None:
+            depth, where, clearance = self._hidden_depths(poses, depth, where, clearance)
         colliding = [self._elements[i].link for i in np.flatnonzero(depth > self.tolerance)]
         worst = int(np.argmax(depth))
         free = not colliding
@@ -345,6 +370,20 @@ class CollisionChecker:
             raise InvalidInputError(f"check_many takes poses (B, 4, 4) and joints (B, n_joints), got "
                                     f"{T.shape} and {q.shape}; stack one pose and joint vector per grasp")
         return [self.check(t, j) for t, j in zip(T, q)]
+
+    def _hidden_depths(self, poses: np.ndarray, depth: np.ndarray, where: np.ndarray,
+                       clearance: float) -> tuple[np.ndarray, np.ndarray, float]:
+        """The elements' depths (E,) and obstacles (E,) with the hidden region's added, and the
+        clearance (0 when a non-contact element enters the region)."""
+        samples = self._hidden_samples
+        R, t = poses[samples.owner, :3, :3], poses[samples.owner, :3, 3]
+        points = np.einsum("sij,sj->si", R, samples.points) + t
+        inside = np.maximum.reduceat(self.hidden.depth_inside(points), samples.starts)
+        deeper = inside > depth
+        if (inside[samples.non_contact] > 0).any():
+            clearance = 0.0
+        return (np.where(deeper, inside, depth),
+                np.where(deeper, len(self._obstacle_names) - 1, where), clearance)
 
     # ------------------------------------------------------------------- clearance
     def _clearance_of(self, points: np.ndarray, owner: np.ndarray, nearest: np.ndarray,
@@ -371,6 +410,23 @@ class CollisionChecker:
 
 
 # ---------------------------------------------------------------------- set-up
+class _HiddenSamples(NamedTuple):
+    """Every element's surface samples stacked, for the hidden region's depths."""
+
+    points: np.ndarray  # (S, 3) link frames, element by element
+    owner: np.ndarray  # (S,) element of each sample
+    starts: np.ndarray  # (E,) first sample of each element
+    non_contact: np.ndarray  # (E,) bool: the element is not a contact element
+
+    @classmethod
+    def of(cls, elements: list[Element]) -> _HiddenSamples:
+        counts = np.array([len(e.samples) for e in elements])
+        return cls(np.concatenate([e.samples for e in elements]).astype(float),
+                   np.repeat(np.arange(len(elements)), counts),
+                   np.r_[0, np.cumsum(counts)[:-1]].astype(np.int64),
+                   np.array([not e.contact for e in elements]))
+
+
 class _Prepared(NamedTuple):
     """A gripper's prepared elements (:func:`_prepared`), with a weak reference to the gripper."""
 

@@ -4,8 +4,12 @@
   compiled function (cached, releasing the GIL, numpy's error model).
 - :mod:`isf.compiled.leaf`: :func:`~isf.compiled.leaf.leaf`, the decorator of per-query
   kernels compiled without reference counting and inlined into their callers.
-- :mod:`isf.compiled.cache`: numba's disk cache kept consistent with the sources (run when
-  isf is imported).
+- :mod:`isf.compiled.cache`: numba's disk cache kept consistent with the sources (run before
+  the first kernel is defined).
+- ``isf.compiled.healing``: ``cached_njit``, numba's cache of one
+  function dropping entries it cannot load (both decorators compile through it).
+- ``isf.compiled.lock``: one process at a time compiles into a cache.
+- ``isf.compiled.workers``: compiling in helper processes that die with their parent.
 
 This package imports nothing of isf's own, so that every layer can use its decorators.
 Compiling every kernel ahead of time (:func:`isf.warming.warm_up`) needs the whole library and

@@ -6,14 +6,17 @@ modules, and the values of the module constants it reads: after an edit of
 ``fitting/_box_qp.py`` alone, the cached kernels of ``fitting/_finger_step.py`` would go on
 running the old active set.
 
-So when isf is imported, before any kernel is loaded, :func:`refresh_package` gives each module
-of the package (every ``*.py`` file in every subfolder) a digest of its source and of the
-sources of every module of the package it imports, directly or not (read from its import
-statements with ``ast``; importing ``a.b`` also runs ``a/__init__.py``), and deletes the
-cached kernels of each module whose digest differs from the one recorded at the last import;
-those kernels compile afresh on first use. An installed release never changes its sources,
-so this acts only after an upgrade (when numba recompiles anyway) or after an edit of a
-checkout.
+So before the first kernel of isf is defined (at the import of ``isf.compiled.healing``),
+:func:`refresh_package` gives each module of the package (every ``*.py`` file in every
+subfolder) a digest of its source and of the sources of every module of the package it
+imports, directly or not (read from its import statements with ``ast``; importing ``a.b``
+also runs ``a/__init__.py``), and deletes the cached kernels of each module whose digest
+differs from the one recorded at the last check; those kernels compile afresh on first use.
+An installed release never changes its sources, so this acts only after an upgrade (when
+numba recompiles anyway) or after an edit of a checkout. The record also holds a stamp of the
+sources' sizes and modification times: while that stamp is unchanged (every run but the first
+after an edit) the digests are not computed again, and the check costs a directory listing
+(milliseconds instead of a second of parsing).
 
 Module keys are dotted paths relative to the package folder, ``__init__`` included
 (``fitting.engine_kernel``, ``fitting.__init__``, ``__init__``). Each module's kernels live
@@ -26,15 +29,16 @@ from __future__ import annotations
 import ast
 import hashlib
 import json
+import os
 from collections.abc import Mapping
 from pathlib import Path
 
 __all__ = ["RECORD", "cache_folder", "module_digests", "module_sources", "refresh",
-           "refresh_installed", "refresh_package"]
+           "refresh_installed", "refresh_package", "sources_stamp"]
 
 RECORD = "isf-kernel-sources.json"
 """The file, in the cache folder of the package's ``__init__.py``, that records each module's
-digest."""
+digest (``"digests"``) and the stamp of the sources they were computed from (``"stamp"``)."""
 
 _PACKAGE = Path(__file__).resolve().parents[1]
 
@@ -125,19 +129,38 @@ def cache_folder(source: Path) -> Path | None:
     return None
 
 
-def refresh(digests: Mapping[str, str], folders: Mapping[str, Path | None], record: Path) -> list[str]:
-    """Delete the cached kernels (``<stem>.*.nbi`` and ``.nbc`` in ``folders[key]``, the stem
-    being the key's last part) of each module whose digest in ``digests`` differs from the one
-    recorded in the file ``record``, then record ``digests``. Returns the keys of the modules
-    whose kernels were deleted. Folders that cannot be read or written are left as they are
-    (numba then does not cache there either)."""
+def sources_stamp(sources: Mapping[str, Path]) -> str:
+    """A sha256 of the key, size and modification time (ns) of each module of ``sources``
+    (:func:`module_sources`): it changes whenever a source is edited, added or removed."""
+    listing = []
+    for key, path in sources.items():
+        status = path.stat()
+        listing.append(f"{key} {status.st_size} {status.st_mtime_ns}\n")
+    return hashlib.sha256("".join(listing).encode()).hexdigest()
+
+
+def _read_record(record: Path) -> dict:
     try:
         recorded = json.loads(record.read_text())
     except (OSError, ValueError):
-        recorded = {}
-    if recorded == digests:
+        return {}
+    return recorded if isinstance(recorded, dict) else {}
+
+
+def refresh(digests: Mapping[str, str], folders: Mapping[str, Path | None], record: Path,
+            stamp: str = "") -> list[str]:
+    """Delete the cached kernels (``<stem>.*.nbi`` and ``.nbc`` in ``folders[key]``, the stem
+    being the key's last part) of each module whose digest in ``digests`` differs from the one
+    recorded in the file ``record``, then record ``digests`` and ``stamp`` (written to a
+    temporary file and renamed, so that a process reading it never sees half of it). Returns
+    the keys of the modules whose kernels were deleted. Folders that cannot be read or written
+    are left as they are (numba then does not cache there either)."""
+    recorded = _read_record(record)
+    if recorded.get("digests") == digests and recorded.get("stamp") == stamp:
         return []
-    stale = sorted(key for key, digest in digests.items() if recorded.get(key) != digest)
+    previous = recorded.get("digests")
+    previous = previous if isinstance(previous, dict) else {}
+    stale = sorted(key for key, digest in digests.items() if previous.get(key) != digest)
     try:
         for key in stale:
             folder, stem = folders.get(key), key.rpartition(".")[2]
@@ -146,7 +169,10 @@ def refresh(digests: Mapping[str, str], folders: Mapping[str, Path | None], reco
             for path in [*folder.glob(f"{stem}.*.nbi"), *folder.glob(f"{stem}.*.nbc")]:
                 path.unlink(missing_ok=True)
         record.parent.mkdir(parents=True, exist_ok=True)
-        record.write_text(json.dumps(dict(digests), indent=0, sort_keys=True))
+        partial = record.with_name(f"{record.name}.{os.getpid()}.tmp")
+        partial.write_text(json.dumps({"digests": dict(digests), "stamp": stamp}, indent=0,
+                                      sort_keys=True))
+        os.replace(partial, record)
     except OSError:
         return []
     return stale
@@ -155,14 +181,18 @@ def refresh(digests: Mapping[str, str], folders: Mapping[str, Path | None], reco
 def refresh_package(package: Path) -> list[str]:
     """:func:`refresh` for the package in the folder ``package``: its modules' digests, the
     folders where numba caches each module's kernels, and the record in the cache folder of its
-    ``__init__.py``. Returns the keys of the modules whose kernels were deleted."""
+    ``__init__.py`` (nothing is computed while the record's stamp matches the sources). Returns
+    the keys of the modules whose kernels were deleted."""
     sources = module_sources(package)
     by_directory = {path.parent: cache_folder(path) for path in sources.values()}
     folders = {key: by_directory[path.parent] for key, path in sources.items()}
     root = folders.get("__init__")
     if root is None:
         return []
-    return refresh(module_digests(package), folders, root / RECORD)
+    stamp = sources_stamp(sources)
+    if _read_record(root / RECORD).get("stamp") == stamp:  # no source changed since the record
+        return []
+    return refresh(module_digests(package), folders, root / RECORD, stamp)
 
 
 def refresh_installed() -> list[str]:

@@ -19,8 +19,9 @@ slower, with the same results.
 
 from __future__ import annotations
 
-from numba import njit
 from numba.core.options import DefaultOptions
+
+from .healing import cached_njit
 
 __all__ = ["leaf"]
 
@@ -32,4 +33,4 @@ def leaf(function):
     """Compile ``function`` as a leaf kernel (see the module docstring): cached, releasing the
     GIL, numpy's error model (as isf's other kernels), no reference counting, inlined by
     LLVM into its callers."""
-    return njit(cache=True, nogil=True, error_model="numpy", **_OPTIONS)(function)
+    return cached_njit(function, nogil=True, error_model="numpy", **_OPTIONS)

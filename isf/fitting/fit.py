@@ -44,11 +44,38 @@ def fit(
         the :class:`FitResult`.
 
     Raises:
-        InvalidInputError: the pose is not a rigid transform, or ``q`` has the
+        InvalidInputError: an argument of the wrong type (a gripper name instead of a
+            :class:`Gripper`, ...), the pose is not a rigid transform, or ``q`` has the
             wrong size or lies outside the joint limits.
     """
-    return fit_many(gripper, obj, np.asarray(T_object_gripper, dtype=float)[None],
-                    None if q is None else np.asarray(q, dtype=float)[None], config)[0]
+    poses = _numbers(T_object_gripper, "T_object_gripper")
+    joints = None if q is None else _numbers(q, "q")[None]
+    return fit_many(gripper, obj, poses[None], joints, config)[0]
+
+
+def _numbers(values, name: str) -> np.ndarray:
+    """``values`` as a float array; InvalidInputError when they are not numbers."""
+    try:
+        return np.asarray(values, dtype=float)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"{name} must be an array of numbers, got "
+                                f"{type(values).__name__}") from None
+
+
+def _check_types(gripper, obj, config) -> None:
+    """Raise InvalidInputError naming the loader for a gripper, object or config of the wrong
+    type."""
+    for name, value, kind, hint in (
+        ("gripper", gripper, Gripper, "isf.load_gripper(name or URDF path)"),
+        ("obj", obj, ObjectSurface, "isf.load_object(path, array or shape:NAME)"),
+    ):
+        if not isinstance(value, kind):
+            raise InvalidInputError(f"{name} must be an isf.{kind.__name__}, got "
+                                    f"{type(value).__name__}: make one with {hint}")
+    if config is not None and not isinstance(config, FitConfig):
+        raise InvalidInputError(f"config must be an isf.FitConfig or None, got "
+                                f"{type(config).__name__}: pass isf.FitConfig(**values) (or "
+                                "FitConfig.from_dict(values))")
 
 
 def fit_many(
@@ -71,16 +98,17 @@ def fit_many(
         one :class:`FitResult` per initial state, in order.
 
     Raises:
-        InvalidInputError: a pose is not a rigid transform, or a joint vector has the
-            wrong size or lies outside the joint limits.
+        InvalidInputError: an argument of the wrong type, a pose is not a rigid transform, or
+            a joint vector has the wrong size or lies outside the joint limits.
     """
-    poses = np.asarray(T_object_gripper, dtype=float)
+    _check_types(gripper, obj, config)
+    poses = _numbers(T_object_gripper, "T_object_gripper")
     if poses.ndim == 2:
         poses = poses[None]
     if q is None:
         joints = [None] * len(poses)
     else:
-        joints = np.asarray(q, dtype=float)
+        joints = _numbers(q, "q")
         if joints.size == len(poses) * gripper.n_joints:
             joints = joints.reshape(len(poses), -1)
         if len(joints) != len(poses):

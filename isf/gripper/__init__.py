@@ -7,7 +7,15 @@ resolves mesh paths (:mod:`isf.gripper.mesh_paths`) and samples the tagged conta
 compiled code; :mod:`isf.gripper.bundled` lists the grippers shipped with isf.
 """
 
-from .loading import inspect_gripper, load_gripper
-from .model import ContactSurface, Gripper, LinkGeometry
+from ..exports import lazy_exports
 
-__all__ = ["ContactSurface", "Gripper", "LinkGeometry", "inspect_gripper", "load_gripper"]
+_SOURCES = {  # each public name -> the module of this package that defines it (loaded on use)
+    "ContactSurface": "model",
+    "Gripper": "model",
+    "LinkGeometry": "model",
+    "inspect_gripper": "loading",
+    "load_gripper": "loading",
+}
+
+__all__ = sorted(_SOURCES)  # noqa: PLE0605 (computed: the keys above)
+__getattr__, __dir__ = lazy_exports(__name__, _SOURCES)

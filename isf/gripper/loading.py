@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import logging
 import math
+import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -153,6 +154,10 @@ class GripperReport:
 def _find_urdf(name_or_path: str | Path) -> tuple[Path | None, str, str | None]:
     """(urdf path, gripper name, problem) for a bundled name, a file or a folder."""
     bundled = bundled_grippers()
+    if not isinstance(name_or_path, (str, os.PathLike)):
+        return None, repr(name_or_path), (
+            f"a gripper is a bundled name ({', '.join(bundled) or 'none installed'}) or a URDF "
+            f"path, got {type(name_or_path).__name__}: pass one of them")
     if isinstance(name_or_path, str) and name_or_path in bundled:
         return bundled[name_or_path], name_or_path, None
     path = Path(name_or_path).expanduser()
@@ -194,6 +199,26 @@ def _joint_reports(doc: TaggedURDF) -> tuple[JointReport, ...]:
             )
         )
     return tuple(out)
+
+
+AXIS_TOLERANCE = 1e-3
+"""Largest ``| |axis| - 1 |`` accepted of a moving joint's ``<axis xyz>``."""
+
+
+def _axis_problems(doc: TaggedURDF) -> list[str]:
+    """A moving joint's axis must be a unit vector: urdfdom keeps a zero axis (the joint then
+    never moves, while its value is reported) and rescales other lengths silently."""
+    problems = []
+    for j in doc.joints.values():
+        if j.type in ("fixed", "floating", "planar") or j.axis is None:
+            continue  # no axis, or a non-finite one (already reported)
+        norm = float(np.linalg.norm(j.axis))
+        if not abs(norm - 1.0) <= AXIS_TOLERANCE:
+            xyz = " ".join(f"{v:g}" for v in j.axis)
+            fix = "give the direction it moves along" if norm == 0.0 else "normalise it"
+            problems.append(f"joint {j.name!r} <axis xyz='{xyz}'> has length {norm:.6g}, not "
+                            f"1: {fix} (a unit vector in the joint frame)")
+    return problems
 
 
 def _joint_problems(joints: tuple[JointReport, ...]) -> list[str]:
@@ -408,7 +433,7 @@ def _load(
     report.root_link = doc.root_link
     report.links = tuple(doc.links)
     report.joints = _joint_reports(doc)
-    joint_problems = _joint_problems(report.joints)
+    joint_problems = _joint_problems(report.joints) + _axis_problems(doc)
     problems += joint_problems
     problems += _initial_problems(doc, report.joints)
     tag = doc.gripper

@@ -13,7 +13,13 @@ Pinocchio's own.
 
 from __future__ import annotations
 
+import contextlib
 import copy
+import logging
+import os
+import sys
+import tempfile
+import threading
 import xml.etree.ElementTree as ET
 
 import pinocchio as pin
@@ -24,6 +30,37 @@ from .urdf_tags import TaggedURDF
 __all__ = ["ModelBuildError", "build_model"]
 
 _PREFIX = "isf{:05d}__"
+
+log = logging.getLogger(__name__)
+
+_STDERR_LOCK = threading.Lock()
+
+
+@contextlib.contextmanager
+def _cxx_stderr_to_log():
+    """Catch what C++ code writes to the process's stderr (file descriptor 2) inside the block,
+    and log it at debug level: urdfdom prints its complaints there, and they would reach the
+    terminal ahead of isf's own one-line message. Python's ``sys.stderr`` is untouched."""
+    with _STDERR_LOCK, tempfile.TemporaryFile() as caught:
+        with contextlib.suppress(AttributeError, ValueError, OSError):
+            sys.stderr.flush()
+        saved = os.dup(2)
+        os.dup2(caught.fileno(), 2)
+        try:
+            yield
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            caught.seek(0)
+            text = caught.read().decode("utf-8", "replace").strip()
+            if text:
+                log.debug("urdfdom: %s", " ".join(text.split()))
+
+
+def _build(xml: str) -> pin.Model:
+    """``pin.buildModelFromXML(xml, mimic=True)`` with urdfdom's stderr lines logged."""
+    with _cxx_stderr_to_log():
+        return pin.buildModelFromXML(xml, mimic=True)
 
 
 def _leader_first_ranks(doc: TaggedURDF) -> dict[str, int]:
@@ -95,14 +132,14 @@ def build_model(text: str, doc: TaggedURDF) -> pin.Model:
         ModelBuildError: Pinocchio rejects the file.
     """
     try:
-        return pin.buildModelFromXML(text, mimic=True)
+        return _build(text)
     except (RuntimeError, ValueError) as exc:
         first = exc
     if doc.root is None or doc.root_link is None or "mimic" not in str(first):
         raise ModelBuildError(first, "fix the URDF structure")
     ranks = _leader_first_ranks(doc)
     try:
-        model = pin.buildModelFromXML(_renamed_xml(doc, ranks), mimic=True)
+        model = _build(_renamed_xml(doc, ranks))
     except (RuntimeError, ValueError) as exc:
         raise ModelBuildError(
             exc,

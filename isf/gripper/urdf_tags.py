@@ -13,10 +13,12 @@ Everything that is wrong but not fatal is collected in
 
 from __future__ import annotations
 
+import contextlib
 import math
 import re
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
+from xml.parsers import expat
 
 import numpy as np
 
@@ -112,7 +114,12 @@ class Mimic:
 
 @dataclass(frozen=True)
 class JointElement:
-    """A ``<joint>``; limits are None when the ``<limit>`` attribute is absent."""
+    """A ``<joint>``; limits are None when the ``<limit>`` attribute is absent.
+
+    Attributes:
+        axis: the ``<axis xyz>`` as written (URDF's default ``1 0 0`` when absent), in the
+            joint frame; None when it is not three finite numbers (a problem is recorded).
+    """
 
     name: str
     type: str
@@ -121,6 +128,7 @@ class JointElement:
     lower: float | None
     upper: float | None
     mimic: Mimic | None
+    axis: np.ndarray | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -284,6 +292,10 @@ def _geometry(rd: _Reader, link: str, elem: ET.Element, source: str, k: int) -> 
     shape, a = shape_elem.tag, shape_elem.attrib
     if shape == "mesh":
         scale = rd.vector(a.get("scale", "1 1 1"), f"{where} <mesh scale>")
+        if scale is not None and not np.all(scale != 0):
+            rd.problems.append(f"{where} <mesh scale={a.get('scale')!r}> has a zero factor, which "
+                               "flattens the mesh: give three non-zero factors (negative mirrors)")
+            scale = None
         if not a.get("filename"):
             rd.problems.append(f"{where} <mesh> has no filename attribute: add one")
         return GeometryElement(
@@ -338,6 +350,10 @@ def _link(rd: _Reader, elem: ET.Element) -> LinkElement:
 def _joint(rd: _Reader, elem: ET.Element) -> JointElement:
     name = elem.get("name", "")
     where = f"joint {name!r}"
+    rd.origin(elem, where)  # records a non-finite origin; Pinocchio reads the pose itself
+    axis_elem = elem.find("axis")
+    axis = rd.vector("1 0 0" if axis_elem is None else axis_elem.get("xyz", "1 0 0"),
+                     f"{where} <axis xyz>")
     limit = elem.find("limit")
     lower = upper = None
     if limit is not None:
@@ -360,6 +376,7 @@ def _joint(rd: _Reader, elem: ET.Element) -> JointElement:
         lower,
         upper,
         mimic,
+        axis,
     )
 
 
@@ -513,21 +530,43 @@ def _syntax_error(original: str, parsed: str) -> URDFReadError:
     )
 
 
+def _refuse_entities(text: str) -> None:
+    """Raise URDFReadError when the text declares XML entities (``<!ENTITY>``).
+
+    Pinocchio's URDF reader does not expand entities while isf's would, so the two would read
+    different files; entities also let a small file expand into a huge one or name outside
+    files. A URDF has no need of them.
+    """
+    if "<!ENTITY" not in text:  # the usual file: no second parse
+        return
+    def refuse(name, *rest) -> None:  # declarations precede the root: nothing is expanded yet
+        raise URDFReadError(
+            f"the file declares the XML entity {name!r} (<!ENTITY>), and URDF readers do not "
+            "expand entities alike: write its text out in place and remove the declaration")
+
+    parser = expat.ParserCreate()
+    parser.EntityDeclHandler = refuse
+    with contextlib.suppress(expat.ExpatError):  # reported by the main parse, with its position
+        parser.Parse(text, True)
+
+
 def _parse_xml(text: str) -> tuple[ET.Element, dict[str, str], list[str]]:
     original = text
+    _refuse_entities(text)
     text, missing = _declare_missing_prefixes(text)
     parser = ET.XMLPullParser(events=("start-ns", "start"))
+    root, ns = None, {}
     try:
         parser.feed(text)
         parser.close()
+        # the pull parser keeps some errors (an undefined entity) until its events are read
+        for event, payload in parser.read_events():
+            if event == "start-ns":
+                ns.setdefault(payload[0], payload[1])
+            elif root is None:
+                root = payload
     except ET.ParseError as exc:
         raise _syntax_error(original, text) from exc
-    root, ns = None, {}
-    for event, payload in parser.read_events():
-        if event == "start-ns":
-            ns.setdefault(payload[0], payload[1])
-        elif root is None:
-            root = payload
     if root is None or root.tag != "robot":
         tag = None if root is None else root.tag
         raise URDFReadError(

@@ -31,7 +31,7 @@ def read_obj(path: Path) -> tuple[np.ndarray, np.ndarray | None]:
 
     Raises:
         ObjectLoadError: the file cannot be parsed, has no vertices, or has faces with fewer
-            than 3 vertices or index 0.
+            than 3 vertices, index 0 or an index past the vertices.
     """
     try:
         text = "\n" + path.read_text(errors="replace").replace("\r", "").replace("\t", " ")
@@ -41,7 +41,7 @@ def read_obj(path: Path) -> tuple[np.ndarray, np.ndarray | None]:
             warnings.simplefilter("ignore")  # loadtxt warns on empty input
             vertices = np.loadtxt(vertex_rows, dtype=np.float64, usecols=(0, 1, 2), ndmin=2)
             index, sizes = _obj_triangles(face_rows)
-    except (OSError, ValueError, IndexError) as exc:
+    except (OSError, ValueError, IndexError, OverflowError) as exc:
         raise ObjectLoadError(
             f"cannot read {path} as OBJ ({exc}): check that the file is a valid mesh"
         ) from exc
@@ -55,6 +55,11 @@ def read_obj(path: Path) -> tuple[np.ndarray, np.ndarray | None]:
         raise ObjectLoadError(
             f"{path} has faces with fewer than 3 vertices or index 0 (OBJ counts from 1): "
             "repair or re-export the mesh"
+        )
+    if (index > len(vertices)).any() or (index < -len(vertices)).any():
+        raise ObjectLoadError(
+            f"{path} has faces that name vertices it does not have (indices up to "
+            f"{int(np.abs(index).max())} for {len(vertices)} vertices): repair or re-export the mesh"
         )
     if (index < 0).any():
         # Negative indices count back from the vertices read before the face's line.

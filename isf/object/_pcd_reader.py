@@ -32,6 +32,24 @@ _PCD_TYPES = {
 }
 
 
+def _header_counts(header: dict[str, list[str]], key: str, path: Path,
+                   default: list[str]) -> list[int]:
+    """The non-negative integers of a PCD header line (``COUNT``, ``POINTS``, ...).
+
+    Raises:
+        ObjectLoadError: a value is not a non-negative integer.
+    """
+    words = header.get(key) or default
+    try:
+        values = [int(w) for w in words]
+    except ValueError:
+        values = [-1]
+    if any(v < 0 for v in values):
+        raise ObjectLoadError(f"{path}: PCD header {key} {' '.join(words)!r} must be "
+                              "non-negative integers: fix the header or re-save the cloud")
+    return values
+
+
 def read_pcd(path: Path) -> np.ndarray:
     """Read a PCL .pcd file (DATA ascii or binary); x y z and normal_x/y/z (or nx/ny/nz).
 
@@ -64,13 +82,16 @@ def read_pcd(path: Path) -> np.ndarray:
             f"cannot read {path} as PCD (no FIELDS/DATA header): save it with PCL or Open3D"
         )
     fields = header["FIELDS"]
-    counts = [int(c) for c in header.get("COUNT", ["1"] * len(fields))]
+    counts = _header_counts(header, "COUNT", path, ["1"] * len(fields))
+    if len(counts) != len(fields):
+        raise ObjectLoadError(f"{path}: the PCD header has {len(fields)} FIELDS but "
+                              f"{len(counts)} COUNT values: fix the header")
     mode = header["DATA"][0].lower() if header["DATA"] else ""
-    n = (
-        int(header.get("POINTS", [0])[0])
-        if "POINTS" in header
-        else (int(header.get("WIDTH", ["0"])[0]) * int(header.get("HEIGHT", ["1"])[0]))
-    )
+    if "POINTS" in header:
+        (n,) = _header_counts(header, "POINTS", path, ["0"])[:1] or (0,)
+    else:
+        n = (_header_counts(header, "WIDTH", path, ["0"])[0]
+             * _header_counts(header, "HEIGHT", path, ["1"])[0])
     try:
         if mode == "ascii":
             with warnings.catch_warnings():
@@ -101,7 +122,7 @@ def read_pcd(path: Path) -> np.ndarray:
             raise ObjectLoadError(
                 f"cannot read {path}: unknown PCD DATA mode {mode!r}; use ascii or binary"
             )
-    except (ValueError, KeyError, IndexError) as exc:
+    except (ValueError, KeyError, IndexError, OverflowError) as exc:
         raise ObjectLoadError(
             f"cannot read {path} as PCD ({exc}): the file is corrupt or truncated"
         ) from exc

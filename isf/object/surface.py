@@ -26,6 +26,9 @@ class ObjectSurface:
         mesh_vertices: the source mesh's vertices (scaled, object frame), shape (V, 3),
             or None for a point cloud.
         mesh_faces: the source mesh's triangles, shape (F, 3), or None.
+        viewpoints: for what cameras saw (a scene's surface, :mod:`isf.scene`), the camera
+            positions, shape (C, 3), metres: the normals face them and the surface continues
+            unseen behind; None for an object.
     """
 
     points: np.ndarray
@@ -34,6 +37,7 @@ class ObjectSurface:
     name: str = "object"
     mesh_vertices: np.ndarray | None = None
     mesh_faces: np.ndarray | None = None
+    viewpoints: np.ndarray | None = None
     _search: NearestPoints | None = field(init=False, repr=False, default=None)
     _thinned: dict = field(init=False, repr=False, default_factory=dict)  # see working_surface
 

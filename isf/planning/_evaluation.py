@@ -24,7 +24,7 @@ from concurrent.futures import Future, ThreadPoolExecutor
 
 import numpy as np
 
-from ..collision.checker import CollisionChecker, CollisionReport, Plane
+from ..collision.checker import CollisionChecker, CollisionReport, HiddenRegion, Plane
 from ..config import FitConfig
 from ..fitting.engine import LockstepFitter
 from ..gripper.model import Gripper
@@ -43,6 +43,8 @@ class SampleJudge:
         gripper, obj, config: the gripper, the object surface and the fit parameters.
         obstacles: half-spaces the gripper must stay out of, object frame.
         tolerance: penetration depth tolerated, metres.
+        hidden: a region the gripper must stay out of (a scene's unseen space), or None; the
+            checks and the repair (which pushes links out along its way out) both see it.
         repair: repair colliding grasps (:func:`isf.repair.clearance.repair_penetration`): True with
             the default :class:`isf.RepairConfig`, or the repair parameters to use;
             False for no repair.
@@ -54,11 +56,13 @@ class SampleJudge:
 
     def __init__(self, gripper: Gripper, obj: ObjectSurface, config: FitConfig, *,
                  obstacles: Sequence[Plane] = (), tolerance: float = 0.002,
-                 repair: bool | RepairConfig = True):
+                 hidden: HiddenRegion | None = None, repair: bool | RepairConfig = True):
         self.gripper, self.obj, self.config = gripper, obj, config
-        self.checker = CollisionChecker(gripper, obj, obstacles=obstacles, tolerance=tolerance)
+        self.checker = CollisionChecker(gripper, obj, obstacles=obstacles, tolerance=tolerance,
+                                        hidden=hidden)
         self.repairer = None if repair is False else ClearanceRepair(
-            gripper, obj, repair if isinstance(repair, RepairConfig) else None, obstacles=obstacles)
+            gripper, obj, repair if isinstance(repair, RepairConfig) else None, obstacles=obstacles,
+            hidden=hidden)
         self.fit_time = self.collision_time = 0.0
 
     def judge(self, result: FitResult) -> tuple[FitResult, CollisionReport]:

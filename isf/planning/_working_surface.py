@@ -90,4 +90,5 @@ def _thinned(obj: ObjectSurface, spacing: float) -> ObjectSurface:
                 "contact points are %.3g m apart)", obj.name, len(pick), obj.n_points, spacing,
                 spacing / SPACING_FACTOR)
     return ObjectSurface(points=obj.points[pick], normals=obj.normals[pick], spacing=float(spacing),
-                         name=obj.name, mesh_vertices=obj.mesh_vertices, mesh_faces=obj.mesh_faces)
+                         name=obj.name, mesh_vertices=obj.mesh_vertices, mesh_faces=obj.mesh_faces,
+                         viewpoints=obj.viewpoints)

@@ -1,18 +1,20 @@
 """The JSON form of a :class:`~isf.planning.planner.PlanResult` (schema: ``isf/plan.schema.json``).
 
 All lengths are metres and angles radians; ``T_object_gripper`` is the pose of
-the gripper frame (the URDF root link) in the object frame, as nested row lists.
+the gripper frame (the URDF root link) in the object frame, as nested row lists. For a plan on
+a scene (:mod:`isf.scene`) the object frame is the scene frame, and ``scene`` records the
+cameras' poses ``T_scene_camera``, the table plane (points ``x`` with ``normal . x < offset``
+are below it) and the point counts.
 """
 
 from __future__ import annotations
 
 import json
 import math
-import os
-import tempfile
 from dataclasses import asdict
 from pathlib import Path
 
+from ..output_files import write_atomically
 from .planner import Grasp, PlanResult
 
 __all__ = ["SCHEMA_PATH", "plan_to_dict", "write_plan_json"]
@@ -47,6 +49,8 @@ def _grasp_to_dict(rank: int, grasp: Grasp) -> dict:
         "colliding_links": list(col.colliding_links),
         "sampler": dict(grasp.sampler_record),
         "sample_index": grasp.sample_index,
+        "valid": bool(grasp.valid),
+        "pieces": grasp.pieces,
     }
 
 
@@ -76,23 +80,33 @@ def plan_to_dict(result: PlanResult, *, top: int | None = None) -> dict:
         },
         "config": result.config.to_dict(),
         "repair": None if result.repair is None else asdict(result.repair),
+        "scene": None if result.scene is None else _scene_to_dict(result.scene),
+    }
+
+
+def _scene_to_dict(scene) -> dict:
+    """What a plan on a scene was planned in: the cameras, the table, the points seen."""
+    table = scene.table
+    return {
+        "T_scene_camera": [[[float(v) for v in row] for row in T] for T in scene.T_scene_camera],
+        "table": None if table is None else {"normal": [float(v) for v in table.normal],
+                                             "offset": float(table.offset)},
+        "observed_points": int(scene.observed),
+        "surface_points": int(scene.surface.n_points),
+        "pieces": int(scene.segments.count),
     }
 
 
 def write_plan_json(result: PlanResult, path: str | Path, *, top: int | None = None) -> Path:
-    """Write the plan to ``path`` atomically (a complete file or none at all).
+    """Write the plan to ``path`` atomically (a complete file or none at all), with the
+    permissions of a plain new file (``0o666`` less the umask).
 
     Returns:
         the path written.
+
+    Raises:
+        OutputFileError: ``path`` is a folder, a symbolic link or a FIFO, or cannot be written
+            (:func:`isf.output_files.write_atomically`).
     """
-    path = Path(path)
     text = json.dumps(plan_to_dict(result, top=top), indent=2)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent or ".")
-    try:
-        with os.fdopen(fd, "w") as f:
-            f.write(text + "\n")
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
+    return write_atomically(path, (text + "\n").encode("utf-8"), "plan file")

@@ -37,7 +37,14 @@ finds it collision-free. Multi-fingered hands need this: ISF fits only the tagge
 surfaces, and the links behind them can end inside the object.
 
 Ranking: collision-free grasps first, then grasps whose every contact surface
-touches the object, then by mean point-to-plane distance (lower first).
+touches the object, then (on a scene) grasps that rest on one piece of the scene's surface
+rather than on several (:mod:`isf.scene.segments`), then by mean point-to-plane distance
+(lower first).
+
+Scenes: :func:`plan` takes an :class:`isf.scene.Scene` (what depth cameras saw) wherever it
+takes an object. ISF fits the scene's observed surface, unsegmented; the collision checks add
+the scene's table to the obstacles and its unseen space (:mod:`isf.scene.unseen`) as a region
+no link may enter; the object frame of the results is the scene frame.
 """
 
 from __future__ import annotations
@@ -57,8 +64,10 @@ from ..object.surface import ObjectSurface
 from ..repair.clearance import RepairConfig
 from ..result import FitResult
 from ..samplers import Outcome, Proposal, Sampler, get_sampler
+from ..scene.loading import Scene
 from ._evaluation import LockstepEvaluations, SampleJudge, SampleWorker, ThreadedEvaluations
 from ._working_surface import resolve_spacing, working_surface
+from .span import warn_if_outside_span
 
 __all__ = ["Grasp", "PlanResult", "PlanStats", "plan"]
 
@@ -71,8 +80,8 @@ SAMPLES_PER_WORKER = 2
 docstring)."""
 
 NO_CONTACT_ERROR = 0.05
-"""Error reported to samplers for a fit where some contact surface does not touch the object,
-metres."""
+"""Error reported to samplers for a fit where some contact surface does not touch the object
+(or, on a scene, the contact surfaces rest on several pieces of it), metres."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -84,12 +93,16 @@ class Grasp:
         collision: the collision report of the fitted gripper.
         sampler_record: what the sampler recorded for this sample (JSON-serialisable).
         sample_index: position of the sample in the planning run, from 0.
+        pieces: on a scene, how many of its surface pieces the contact surfaces rest on
+            (:meth:`isf.scene.SceneSegments.touched`; more than 1 is likely two objects);
+            None when planning on an object.
     """
 
     fit: FitResult
     collision: CollisionReport
     sampler_record: dict
     sample_index: int
+    pieces: int | None = None
 
     @property
     def T_object_gripper(self) -> np.ndarray:
@@ -112,14 +125,22 @@ class Grasp:
         return self.collision.collision_free
 
     @property
+    def one_piece(self) -> bool:
+        """False when the contact surfaces rest on more than one piece of a scene's surface."""
+        return self.pieces is None or self.pieces <= 1
+
+    @property
     def valid(self) -> bool:
-        """Collision-free and every contact surface touches the object."""
-        return self.collision.collision_free and self.fit.all_surfaces_in_contact
+        """Collision-free, every contact surface touches the object, and (on a scene) all rest
+        on one piece of its surface."""
+        return (self.collision.collision_free and self.fit.all_surfaces_in_contact
+                and self.one_piece)
 
     def sort_key(self) -> tuple:
-        """Ranking key: collision-free, then all surfaces touching, then mean distance."""
+        """Ranking key: collision-free, then all surfaces touching, then one piece, then mean
+        distance."""
         return (not self.collision_free, not self.fit.all_surfaces_in_contact,
-                self.fit.mean_distance, self.sample_index)
+                not self.one_piece, self.fit.mean_distance, self.sample_index)
 
 
 @dataclass(frozen=True)
@@ -129,7 +150,8 @@ class PlanStats:
     Attributes:
         samples: samples evaluated.
         collision_free: collision-free grasps.
-        valid: collision-free grasps whose every contact surface touches the object.
+        valid: collision-free grasps whose every contact surface touches the object (on a
+            scene: one piece of it; see :attr:`Grasp.valid`).
         total_time: wall time of the whole run (set-up included), seconds.
         time_per_collision_free: ``total_time / collision_free`` (inf when none), seconds.
         fit_time: time spent in ISF and in repairs, seconds (summed over the worker threads,
@@ -168,6 +190,8 @@ class PlanResult:
         seed: the seed the run used.
         config: the fit parameters.
         repair: the collision repair's parameters; None when the run did not repair.
+        scene: the :class:`isf.scene.Scene` planned on (its frame is the object frame of the
+            grasps), or None for an object.
     """
 
     grasps: tuple[Grasp, ...]
@@ -178,6 +202,7 @@ class PlanResult:
     seed: int | None
     config: FitConfig = field(default_factory=FitConfig)
     repair: RepairConfig | None = None
+    scene: Scene | None = None
 
     @property
     def best(self) -> Grasp | None:
@@ -195,9 +220,17 @@ def _slots(sampler: Sampler, batch_size: int) -> int:
     return batch_size if limit is None else max(1, min(batch_size, int(limit)))
 
 
-def _check_arguments(samples, batch_size, workers, repair_collisions) -> None:
+def _check_arguments(samples, batch_size, workers, repair_collisions, seed=None,
+                     config=None) -> None:
     """Raise InvalidInputError for the arguments of :func:`plan` it rejects (see there)."""
     from ..exceptions import InvalidInputError
+
+    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, (int, np.integer))
+                             or seed < 0):
+        raise InvalidInputError(f"seed must be None or an integer >= 0, got {seed!r}")
+    if config is not None and not isinstance(config, FitConfig):
+        raise InvalidInputError(f"config must be an isf.FitConfig or None, got "
+                                f"{type(config).__name__}: pass isf.FitConfig(**values)")
 
     for name, value in (("samples", samples), ("batch_size", batch_size), ("workers", workers)):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
@@ -213,7 +246,7 @@ def _check_arguments(samples, batch_size, workers, repair_collisions) -> None:
 
 def plan(
     gripper: Gripper | str | Path,
-    obj: ObjectSurface | str | Path | np.ndarray,
+    obj: ObjectSurface | Scene | str | Path | np.ndarray,
     samples: int = 60,
     sampler: str | Sampler | type[Sampler] = "regret",
     seed: int | None = 0,
@@ -236,13 +269,14 @@ def plan(
 
     Args:
         gripper: a :class:`Gripper`, a bundled gripper name or a URDF path.
-        obj: an :class:`ObjectSurface`, a mesh or point-cloud path, or an (N, 3)/(N, 6) array
-            (metres).
+        obj: an :class:`ObjectSurface`, a mesh or point-cloud path, an (N, 3)/(N, 6) array
+            (metres), or an :class:`isf.scene.Scene` (see the module docstring).
         samples: number of samples ``K_s`` to evaluate.
         sampler: a registered sampler name (see :func:`isf.available_samplers`), class or instance.
         seed: seed of the run's random generator; the same seed gives the same result.
         config: ISF parameters; default the paper's.
-        obstacles: half-spaces the gripper must not enter (e.g. ``Plane.table(z)``), object frame.
+        obstacles: half-spaces the gripper must not enter (e.g. ``Plane.table(z)``), object
+            frame (a scene's table is added to them).
         collision_tolerance: penetration depth tolerated before a grasp counts as colliding, metres.
         batch_size: samples fitted at once in lockstep, in one thread (see the module
             docstring); 1 is the paper's loop.
@@ -262,7 +296,8 @@ def plan(
 
     Raises:
         InvalidInputError: ``samples``, ``batch_size`` or ``workers`` is not a positive
-            integer, both ``batch_size`` and ``workers`` exceed 1, ``repair_collisions`` is
+            integer, ``seed`` is neither None nor an integer >= 0, ``config`` is not a
+            :class:`FitConfig`, both ``batch_size`` and ``workers`` exceed 1, ``repair_collisions`` is
             neither a bool nor a :class:`isf.RepairConfig`,
             ``working_spacing`` is neither "auto", None nor a spacing > 0, or the
             sampler proposed an invalid pose or joint vector.
@@ -272,26 +307,35 @@ def plan(
     from ..object.loading import load_object
 
     started = time.perf_counter()
-    _check_arguments(samples, batch_size, workers, repair_collisions)
+    _check_arguments(samples, batch_size, workers, repair_collisions, seed, config)
     config = FitConfig() if config is None else config
     gripper = gripper if isinstance(gripper, Gripper) else load_gripper(gripper)
+    scene = obj if isinstance(obj, Scene) else None
+    if scene is not None:
+        obj, obstacles = scene.surface, (*obstacles, *scene.obstacles)
     obj = obj if isinstance(obj, ObjectSurface) else load_object(obj)
+    if scene is None:
+        warn_if_outside_span(gripper, obj)  # e.g. a file in mm read as metres
     obj = working_surface(obj, resolve_spacing(working_spacing, gripper))
     sampler = get_sampler(sampler)
     rng = np.random.default_rng(seed)
     sampler.reset(obj, gripper, rng)  # line 2: the sampler's state (centres, regret, trials)
-    options = dict(obstacles=obstacles, tolerance=collision_tolerance, repair=repair_collisions)
+    options = dict(obstacles=obstacles, tolerance=collision_tolerance, repair=repair_collisions,
+                   hidden=None if scene is None else scene.unseen)
 
     grasps: list[Grasp] = []
 
     def record(index: int, proposal: Proposal, result: FitResult,
                report: CollisionReport) -> Outcome:
         """Keep a sample's grasp and return its outcome for the sampler."""
-        grasp = Grasp(result, report, dict(proposal.record), index)
+        pieces = None if scene is None else scene.segments.touched(
+            gripper, result.T_object_gripper, result.q, config.contact_distance)
+        grasp = Grasp(result, report, dict(proposal.record), index, pieces)
         grasps.append(grasp)
         if progress is not None:
             progress(len(grasps), samples, grasp)
-        error = result.mean_distance if result.all_surfaces_in_contact else NO_CONTACT_ERROR
+        touching = result.all_surfaces_in_contact and grasp.one_piece
+        error = result.mean_distance if touching else NO_CONTACT_ERROR
         return Outcome(proposal, error=error, collision_free=report.collision_free)
 
     if workers == 1:
@@ -329,5 +373,5 @@ def plan(
     )
     repairer = judges[0].repairer  # the parameters the run repaired with, as the judges took them
     return PlanResult(tuple(grasps), stats, gripper.name, obj.name, sampler.name, seed, config,
-                      None if repairer is None else repairer.config)
+                      None if repairer is None else repairer.config, scene)
 

@@ -7,16 +7,18 @@ writes the copy (:func:`tag_urdf`) and ``preview`` describes the result (:class:
 """
 
 from ..exceptions import RegistrationError
-from .preview import SurfacePreview, TagPreview
+from .preview import EXPORT_FORMATS, SurfacePreview, TagPreview, check_export_path
 from .spec import ContactSpec
 from .suggestion import suggest_approach, suggest_contacts
 from .urdf_editing import tag_urdf
 
 __all__ = [
     "ContactSpec",
+    "EXPORT_FORMATS",
     "RegistrationError",
     "SurfacePreview",
     "TagPreview",
+    "check_export_path",
     "suggest_approach",
     "suggest_contacts",
     "tag_urdf",

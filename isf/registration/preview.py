@@ -10,13 +10,36 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from ..exceptions import GeometryLoadError, MeshNotFoundError, SurfaceSelectionError
+from ..exceptions import (
+    GeometryLoadError,
+    MeshNotFoundError,
+    OutputFileError,
+    SurfaceSelectionError,
+)
 from ..gripper.loading import GripperReport, format_report, load_gripper
 from ..gripper.surface_sampling import load_geometry, select_faces, tag_elements
 from ..gripper.urdf_tags import ContactTag, TaggedURDF
+from ..output_files import check_output_path, write_atomically
 from ._urdf_source import Posed, face_normals
 
-__all__ = ["SurfacePreview", "TagPreview", "preview_surface"]
+__all__ = ["EXPORT_FORMATS", "SurfacePreview", "TagPreview", "check_export_path", "preview_surface"]
+
+EXPORT_FORMATS = ("glb", "obj", "ply")
+"""File suffixes :meth:`TagPreview.export` writes (formats that keep face colours)."""
+
+
+def check_export_path(path: str | Path) -> Path:
+    """``path`` as a :class:`Path` once :meth:`TagPreview.export` can write it.
+
+    Raises:
+        OutputFileError: the suffix is not one of ``EXPORT_FORMATS``, or the path cannot
+            become a regular file (:func:`isf.output_files.check_output_path`).
+    """
+    path = check_output_path(path, "export file")
+    if path.suffix.lower().lstrip(".") not in EXPORT_FORMATS:
+        raise OutputFileError(f"export file {path} has suffix {path.suffix!r}: name a "
+                              f"{', '.join('.' + f for f in EXPORT_FORMATS)} file", path=path)
+    return path
 
 
 @dataclass(frozen=True, eq=False)
@@ -142,7 +165,10 @@ class TagPreview:
 
         Raises:
             GripperDescriptionError: the copy does not load (see :attr:`problems`).
+            OutputFileError: as :func:`isf.registration.check_export_path` (checked before any
+                work), or the write failed.
         """
+        out = check_export_path(path)
         gripper = load_gripper(self.urdf_path)
         poses = gripper.link_poses(gripper.q_initial)
         parts = []
@@ -163,9 +189,9 @@ class TagPreview:
             )
             patch.visual.face_colors = (220, 30, 30, 255)
             parts.append(patch)
-        out = Path(path)
-        trimesh.util.concatenate(parts).export(str(out))
-        return out
+        data = trimesh.util.concatenate(parts).export(file_type=out.suffix.lower().lstrip("."))
+        return write_atomically(out, data if isinstance(data, bytes) else data.encode("utf-8"),
+                                "export file")
 
 
 def _mm(v: np.ndarray) -> str:

@@ -44,6 +44,7 @@ from ..exceptions import MeshNotFoundError, ModelBuildError, RegistrationError
 from ..gripper.loading import inspect_gripper
 from ..gripper.mesh_paths import PackageDirs, mesh_path_candidates, resolve_mesh_path
 from ..gripper.urdf_tags import ISF_NS, parse_tagged_urdf
+from ..output_files import check_output_path, write_atomically
 from ._urdf_source import initial_tags, parse_urdf, pose_urdf, read_urdf
 from .preview import TagPreview, preview_surface
 from .spec import _ATTR_FLOAT, ContactSpec, _element, _format_vector, _vector
@@ -234,10 +235,14 @@ def tag_urdf(
     Raises:
         RegistrationError: bad arguments, an unreadable source, an existing ``isf:*`` tag
             (without ``replace_tags``), or ``out_path`` naming the source.
+        OutputFileError: ``out_path`` is a folder, a symbolic link or a FIFO, or cannot be
+            written (checked before anything is written).
     """
     t0 = time.perf_counter()
     src, text = read_urdf(urdf_path)
     dst = Path(out_path).expanduser().absolute()
+    if dst.parent.is_dir():  # a missing folder is created below
+        check_output_path(dst, "tagged URDF")
     if dst.exists() and os.path.samefile(dst, src):
         raise RegistrationError(
             f"out_path {dst} is the source file; isf never edits the vendor file: "
@@ -276,7 +281,7 @@ def tag_urdf(
     ]
     new = _insert_elements(new, elements)
     dst.parent.mkdir(parents=True, exist_ok=True)
-    dst.write_bytes(new.encode("utf-8"))
+    write_atomically(dst, new.encode("utf-8"), "tagged URDF")
     t1 = time.perf_counter()
     log.info(
         "wrote %s (%d isf elements, %d mesh paths made absolute)",

@@ -70,10 +70,10 @@ import numpy as np
 import osqp
 import scipy.sparse as sp
 
-from ..collision.checker import Plane, checked_state, object_voxels
+from ..collision.checker import HiddenRegion, Plane, checked_state, object_voxels
 from ..collision.surface_distance import NEIGHBOURS
 from ..collision.voxels import kernel_arrays
-from ..config import FitConfig
+from ..config import FitConfig, check_field
 from ..exceptions import ConfigError, GripperDescriptionError
 from ..fitting.engine import score_fit
 from ..fitting.segments import Segments
@@ -94,6 +94,10 @@ _MM = 1000.0  # QP length unit: millimetres per metre
 _CONVEX_REACH = 0.003  # object points this close to a convex element (beyond its floor) get rows, m
 _OUTLIER_FACTOR = 3.0  # pull mode: pairs farther than this times the median distance are dropped
 _BOUND_SLACK = 1e-12  # rounding allowance on the bounds of a sample's violation, m
+
+MIN_SPACING = 1e-4
+"""Smallest ``sample_spacing`` and ``object_spacing`` of :class:`RepairConfig`, metres (denser
+samples only cost memory: the clearance rows keep the deepest points)."""
 
 DAQP_PRIMAL_TOLERANCE = 1e-12
 """daqp's primal feasibility tolerance. Its default, 1e-6, leaves the repair's rows violated by
@@ -216,21 +220,21 @@ class RepairConfig:
     lock_palm: bool = False
 
     def __post_init__(self) -> None:
-        if not isinstance(self.iterations, int) or self.iterations < 1:
-            raise ConfigError(
-                f"RepairConfig.iterations must be an integer >= 1, got {self.iterations!r}")
-        for name in ("max_samples", "max_rows"):
-            value = getattr(self, name)
-            if not isinstance(value, int) or value < 1:
-                raise ConfigError(f"RepairConfig.{name} must be an integer >= 1, got {value!r}")
+        """Refuse values of the wrong type, not finite, or out of range (:class:`ConfigError`);
+        the spacings have a floor and the counts a ceiling, so no setting allocates more than a
+        repair can use."""
+        highs = {"iterations": 1000, "max_samples": 100_000, "max_rows": 1000}
+        for name, high in highs.items():
+            check_field("RepairConfig", name, getattr(self, name), integer=True, low=1, high=high)
         for name in ("tolerance", "margin", "contact_allowance", "regularisation"):
-            if not getattr(self, name) >= 0.0:
-                raise ConfigError(f"RepairConfig.{name} must be >= 0, got {getattr(self, name)!r}")
+            check_field("RepairConfig", name, getattr(self, name), low=0.0)
         for name in ("activation", "contact_reach", "max_normal_angle", "max_translation_step",
-                     "max_rotation_step", "max_joint_step", "sample_spacing", "object_spacing",
-                     "slack_weight", "contact_weight", "lever"):
-            if not getattr(self, name) > 0.0:
-                raise ConfigError(f"RepairConfig.{name} must be > 0, got {getattr(self, name)!r}")
+                     "max_rotation_step", "max_joint_step", "slack_weight", "contact_weight",
+                     "lever"):
+            check_field("RepairConfig", name, getattr(self, name), above=0.0)
+        for name in ("sample_spacing", "object_spacing"):
+            check_field("RepairConfig", name, getattr(self, name), low=MIN_SPACING)
+        check_field("RepairConfig", "lock_palm", self.lock_palm, flag=True)
 
 
 class RepairResult(NamedTuple):
@@ -277,6 +281,10 @@ class ClearanceRepair:
         config: repair parameters; default :class:`RepairConfig()`.
         obstacles: half-spaces (:class:`isf.collision.checker.Plane`, object frame) every link is also
             kept ``margin`` above, e.g. ``[Plane.table(z)]``.
+        hidden: a region no link may enter (:class:`isf.collision.checker.HiddenRegion`, e.g. a
+            scene's unseen space), or None. Each link sample inside it gets a clearance row
+            along the region's way out (towards the camera), asking it to move out by its depth
+            plus ``margin``.
 
     Raises:
         GripperDescriptionError: the gripper has no link geometry.
@@ -287,12 +295,13 @@ class ClearanceRepair:
     """
 
     def __init__(self, gripper: Gripper, obj: ObjectSurface, config: RepairConfig | None = None,
-                 *, obstacles: Sequence[Plane] = ()):
+                 *, obstacles: Sequence[Plane] = (), hidden: HiddenRegion | None = None):
         if not gripper.geometries:
             raise GripperDescriptionError(gripper.name, [
                 ("it has no link geometry to keep out of the object; give its links <collision> "
                  "elements")])
         self.gripper, self.object, self.obstacles = gripper, obj, tuple(obstacles)
+        self.hidden = hidden
         self.config = cfg = RepairConfig() if config is None else config
         rng = np.random.default_rng(0)  # the object's resampling, then the gripper's samples
         self._planes, self._grid, self._resampled = object_side(obj, cfg.object_spacing, rng)
@@ -494,6 +503,15 @@ class ClearanceRepair:
             for plane in self.obstacles:
                 known.append(_Rows(owner, local, np.broadcast_to(plane.normal, local.shape),
                                    self.config.margin - plane.height(world), self._element))
+        if self.hidden is not None:  # samples in the hidden region leave it along its way out
+            owner, local = self._owner, self._points_link
+            world = to_object(T, R, p, owner, local)
+            depth = self.hidden.depth_inside(world)
+            inside = np.flatnonzero(depth > 0.0)
+            if len(inside):
+                known.append(_Rows(owner[inside], local[inside],
+                                   self.hidden.way_out(world[inside]),
+                                   self.config.margin + depth[inside], self._element[inside]))
         known = _Rows(*(np.concatenate(v) for v in zip(*known))) if known else _NO_ROWS
         sel = self._near_samples(T, R, p)
         owner, local, element = self._owner[sel], self._points_link[sel], self._element[sel]
@@ -577,9 +595,11 @@ class ClearanceRepair:
         step, joints, g = self._step, self._scale[6:], self.gripper
         lo = np.minimum(0.0, np.maximum(-step[6:], (g.lower - q) * joints))
         hi = np.maximum(0.0, np.minimum(step[6:], (g.upper - q) * joints))
-        H, f, A, lower, upper = step_qp(
-            c_rows, gaps * _MM, a_rows, violation * _MM, element, self._unit, self._regularisation,
-            self.config.contact_weight, self.config.slack_weight, step[:6], lo, hi)
+        with np.errstate(over="ignore", invalid="ignore"):  # absurd data: refused by _solvable
+            H, f, A, lower, upper = step_qp(
+                c_rows, gaps * _MM, a_rows, violation * _MM, element, self._unit,
+                self._regularisation, self.config.contact_weight, self.config.slack_weight,
+                step[:6], lo, hi)
         return H, f, A, lower, upper, self._scale
 
     def _solve(self, c_rows, gaps, a_rows, violation, element, q) -> np.ndarray | None:
@@ -610,21 +630,41 @@ class ClearanceRepair:
         return T_new, g.clip(q + x[6:])
 
 
+def _solvable(H, f, A, lower, upper) -> bool:
+    """False (logged) for QP data no solver can use: non-finite terms or crossed bounds (e.g.
+    an obstacle plane placed absurdly far away); OSQP would print its refusal on stdout."""
+    ok = (all(np.all(np.isfinite(v)) for v in (H, f, A)) and not np.any(np.isnan(lower))
+          and not np.any(np.isnan(upper)) and bool(np.all(lower <= upper))
+          and not np.any(lower == np.inf) and not np.any(upper == -np.inf))
+    if not ok:
+        logger.debug("clearance QP: data not finite or bounds crossed; no step")
+    return ok
+
+
 def _solve_exact(H, f, A, lower, upper) -> np.ndarray | None:
     """daqp's exact answer to ``min 1/2 z^T H z + f^T z, lower <= A z <= upper`` (H (n, n)
     positive definite, A (m, n)), or None when it reports anything but an optimum (logged)."""
+    if not _solvable(H, f, A, lower, upper):
+        return None
     z, _, flag, _ = daqp.solve(H, f, A, upper, lower, primal_tol=DAQP_PRIMAL_TOLERANCE)
-    if flag in _DAQP_OPTIMAL:
+    if flag in _DAQP_OPTIMAL and np.all(np.isfinite(z)):
         return z
     logger.debug("clearance QP: daqp exit flag %d (-1: infeasible); falling back to OSQP", flag)
     return None
 
 
 def _solve_osqp(H, f, A, lower, upper) -> np.ndarray | None:
-    """OSQP's answer to ``min 1/2 z^T H z + f^T z, lower <= A z <= upper``, or None on failure."""
+    """OSQP's answer to ``min 1/2 z^T H z + f^T z, lower <= A z <= upper``, or None on failure
+    (data OSQP would refuse, with a message on stdout, is refused here first)."""
+    if not _solvable(H, f, A, lower, upper):
+        return None
     solver = osqp.OSQP(algebra="builtin")  # as isf.fitting._finger_step: no backend probing
-    solver.setup(sp.csc_matrix(np.triu(H)), f, sp.csc_matrix(A), lower, upper, verbose=False,
-                 eps_abs=1e-3, eps_rel=1e-3, max_iter=4000, polishing=False)
+    try:
+        solver.setup(sp.csc_matrix(np.triu(H)), f, sp.csc_matrix(A), lower, upper, verbose=False,
+                     eps_abs=1e-3, eps_rel=1e-3, max_iter=4000, polishing=False)
+    except (osqp.OSQPException, ValueError) as exc:  # data OSQP's own checks refuse
+        logger.debug("clearance QP refused by OSQP's set-up: %s", exc)
+        return None
     result = solver.solve(raise_error=False)
     status = getattr(result.info, "status", "")
     # An inexact step (iteration cap) is still a descent direction for Gauss-Newton; the

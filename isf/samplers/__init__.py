@@ -4,33 +4,25 @@ Samplers are found by name through the ``isf.samplers`` entry-point group
 (built-ins included); see ``docs/samplers.md`` for writing a plugin.
 """
 
-from .base import Outcome, Proposal, Sampler, grasp_centre, place_gripper, random_rotation
-from .orientation import ORIENTATIONS
-from .registry import (
-    ENTRY_POINT_GROUP,
-    SamplerInfo,
-    available_samplers,
-    get_sampler,
-    refresh_samplers,
-    register_sampler,
-)
-from .regret import RegretSampler
-from .uniform import UniformSampler
+from ..exports import lazy_exports
 
-__all__ = [
-    "ENTRY_POINT_GROUP",
-    "ORIENTATIONS",
-    "Outcome",
-    "Proposal",
-    "RegretSampler",
-    "Sampler",
-    "SamplerInfo",
-    "UniformSampler",
-    "available_samplers",
-    "get_sampler",
-    "grasp_centre",
-    "place_gripper",
-    "random_rotation",
-    "refresh_samplers",
-    "register_sampler",
-]
+_SOURCES = {  # each public name -> the module of this package that defines it (loaded on use)
+    "ENTRY_POINT_GROUP": "registry",
+    "ORIENTATIONS": "orientation",
+    "Outcome": "base",
+    "Proposal": "base",
+    "RegretSampler": "regret",
+    "Sampler": "base",
+    "SamplerInfo": "registry",
+    "UniformSampler": "uniform",
+    "available_samplers": "registry",
+    "get_sampler": "registry",
+    "grasp_centre": "base",
+    "place_gripper": "base",
+    "random_rotation": "base",
+    "refresh_samplers": "registry",
+    "register_sampler": "registry",
+}
+
+__all__ = sorted(_SOURCES)  # noqa: PLE0605 (computed: the keys above)
+__getattr__, __dir__ = lazy_exports(__name__, _SOURCES)

@@ -8,12 +8,16 @@ the grasp centre) and spin the hand about it uniformly at random.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from ..exceptions import ConfigError, GripperDescriptionError
-from ..gripper.model import Gripper
 from ..se3 import exp_so3, skew
 from .base import random_rotation
+
+if TYPE_CHECKING:
+    from ..gripper.model import Gripper
 
 __all__ = [
     "ORIENTATIONS",

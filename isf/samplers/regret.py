@@ -24,7 +24,6 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.cluster.vq import ClusterError, kmeans2, vq
 
 from ..exceptions import ConfigError
 from .base import Outcome, Proposal, Sampler, place_gripper
@@ -39,6 +38,24 @@ __all__ = ["RegretSampler"]
 logger = logging.getLogger(__name__)
 
 _KMEANS_ATTEMPTS = 5
+PAPER_CLUSTERS = 6
+"""The paper's number of k-means centres (section V-A)."""
+MAX_SCENE_CLUSTERS = 30
+"""Most centres the default gives a scene."""
+
+
+def _default_clusters(obj: ObjectSurface, gripper: Gripper) -> int:
+    """The default K: :data:`PAPER_CLUSTERS` on an object; on a scene one per square patch half
+    as wide as the gripper's opening (the distance between its contact surfaces' centroids),
+    from the surface's area (points times spacing squared), within [6, 30]."""
+    if obj.viewpoints is None:
+        return PAPER_CLUSTERS
+    points, _ = gripper.contact_points(gripper.q_initial)
+    centroids = np.array([points[gripper.point_surface == k].mean(axis=0)
+                          for k in range(len(gripper.surfaces))])
+    opening = float(np.ptp(centroids, axis=0).max()) if len(centroids) > 1 else 0.05
+    area = obj.n_points * obj.spacing**2
+    return int(np.clip(round(area / (0.5 * opening) ** 2), PAPER_CLUSTERS, MAX_SCENE_CLUSTERS))
 
 
 @dataclass(eq=False, kw_only=True)
@@ -54,8 +71,10 @@ class RegretSampler(Sampler):
     holds ``{"cluster": k, "regret": regret(k) when proposed}``.
 
     Args:
-        n_clusters: number of k-means centres K (paper: 6), >= 1 and at most
-            the number of object points.
+        n_clusters: number of k-means centres K, >= 1 and at most the number of object
+            points; None (default): the paper's 6 on an object, and on what cameras saw (a
+            scene, :mod:`isf.scene`) one per patch of the surface half as wide as the
+            gripper's opening, at least 6 and at most 30 (``MAX_SCENE_CLUSTERS``).
         gamma: collision penalty factor (paper: 0.2), >= 0.
         kmeans_iterations: Lloyd iterations of k-means, >= 1.
         orientation: ``auto`` (default: the gripper's approach axis against the cluster's
@@ -63,6 +82,7 @@ class RegretSampler(Sampler):
             ``random`` (uniform on SO(3), the paper's); see :mod:`isf.samplers.orientation`.
 
     Attributes:
+        k: the number of centres K in use (``n_clusters`` or its default).
         centres: cluster centres, object frame, shape (K, 3), metres.
         labels: cluster of each object point, shape (N,).
         regret: average regret per cluster, shape (K,), metres.
@@ -73,11 +93,12 @@ class RegretSampler(Sampler):
     name = "regret"
     description = "k-means cluster centres chosen by least average fitting error (paper Alg. 3)"
 
-    n_clusters: int = 6
+    n_clusters: int | None = None
     gamma: float = 0.2
     kmeans_iterations: int = 10
     orientation: str = "auto"
 
+    k: int = field(init=False, repr=False, default=0)
     centres: np.ndarray = field(init=False, repr=False, default=None)
     labels: np.ndarray = field(init=False, repr=False, default=None)
     regret: np.ndarray = field(init=False, repr=False, default=None)
@@ -89,6 +110,8 @@ class RegretSampler(Sampler):
     def __post_init__(self) -> None:
         for key in ("n_clusters", "kmeans_iterations"):
             value = getattr(self, key)
+            if key == "n_clusters" and value is None:
+                continue
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
                 raise ConfigError(f"regret: {key} must be an integer >= 1, got {value!r}")
         gamma = self.gamma
@@ -105,27 +128,31 @@ class RegretSampler(Sampler):
             ConfigError: the object has fewer points than ``n_clusters``.
         """
         super().reset(obj, gripper, rng)
-        if obj.n_points < self.n_clusters:
+        self.k = self.n_clusters if self.n_clusters is not None else \
+            _default_clusters(obj, gripper)
+        if obj.n_points < self.k:
             raise ConfigError(
-                f"regret: n_clusters={self.n_clusters} exceeds the object's {obj.n_points} "
+                f"regret: n_clusters={self.k} exceeds the object's {obj.n_points} "
                 "points; lower n_clusters or sample the object more densely"
             )
         self.centres = self._kmeans(obj.points, rng)
+        from scipy.cluster.vq import vq  # scipy loads when a plan starts, not with the registry
+
         # kmeans2's labels predate its last centroid update; label by the final centres.
         self.labels = vq(obj.points, self.centres, check_finite=False)[0]
-        self.regret = np.zeros(self.n_clusters)
-        self.trials = np.zeros(self.n_clusters, dtype=int)
-        self.pending = np.zeros(self.n_clusters, dtype=int)
+        self.regret = np.zeros(self.k)
+        self.trials = np.zeros(self.k, dtype=int)
+        self.pending = np.zeros(self.k, dtype=int)
         self._approach = resolve_approach(self.orientation, gripper, self.name)
         self.inward = self._inward_directions(obj)
 
     def _inward_directions(self, obj: ObjectSurface) -> np.ndarray:
         """Per cluster, minus its points' mean normal (or the normal nearest its centre when
         the normals cancel, as on a thin part), shape (K, 3)."""
-        inward = np.zeros((self.n_clusters, 3))
+        inward = np.zeros((self.k, 3))
         np.add.at(inward, self.labels, -obj.normals)
         norm = np.linalg.norm(inward, axis=1)
-        weak = norm < 0.3 * np.bincount(self.labels, minlength=self.n_clusters)
+        weak = norm < 0.3 * np.bincount(self.labels, minlength=self.k)
         if weak.any():
             _, nearest = obj.nearest(self.centres[weak])
             inward[weak] = -obj.normals[nearest]
@@ -133,11 +160,13 @@ class RegretSampler(Sampler):
 
     def _kmeans(self, points: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """k-means++ centres, shape (K, 3); retries when a cluster empties."""
+        from scipy.cluster.vq import ClusterError, kmeans2
+
         for attempt in range(_KMEANS_ATTEMPTS):
             try:
                 centres, _ = kmeans2(
                     points,
-                    self.n_clusters,
+                    self.k,
                     iter=self.kmeans_iterations,
                     minit="++",
                     missing="raise",
@@ -147,7 +176,7 @@ class RegretSampler(Sampler):
             except ClusterError:
                 logger.debug("k-means attempt %d left a cluster empty; retrying", attempt + 1)
         raise ConfigError(
-            f"regret: k-means could not find {self.n_clusters} non-empty clusters in "
+            f"regret: k-means could not find {self.k} non-empty clusters in "
             f"{_KMEANS_ATTEMPTS} attempts (duplicate points?); lower n_clusters"
         )
 
@@ -155,7 +184,7 @@ class RegretSampler(Sampler):
         """Index of the cluster with the least average regret (on ties: fewest proposals in
         flight, then the lowest index)."""
         self._require_reset()
-        return int(np.lexsort((np.arange(self.n_clusters), self.pending, self.regret))[0])
+        return int(np.lexsort((np.arange(self.k), self.pending, self.regret))[0])
 
     def propose(self, n: int, rng: np.random.Generator) -> list[Proposal]:
         """``n`` proposals at the best cluster centre, each with its own orientation."""
@@ -183,7 +212,7 @@ class RegretSampler(Sampler):
         self._require_reset()
         for outcome in outcomes:
             k = outcome.proposal.record.get("cluster")
-            if not isinstance(k, (int, np.integer)) or not 0 <= k < self.n_clusters:
+            if not isinstance(k, (int, np.integer)) or not 0 <= k < self.k:
                 raise ValueError(
                     f"regret: outcome record {dict(outcome.proposal.record)!r} has no valid "
                     "'cluster'; pass back proposals made by this sampler since reset()"

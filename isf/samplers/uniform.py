@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..gripper.model import Gripper
-from ..object.surface import ObjectSurface
 from .base import Proposal, Sampler, place_gripper
 from .orientation import check_orientation, initial_rotations, resolve_approach
+
+if TYPE_CHECKING:
+    from ..gripper.model import Gripper
+    from ..object.surface import ObjectSurface
 
 __all__ = ["UniformSampler"]
 

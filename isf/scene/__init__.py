@@ -1,0 +1,31 @@
+"""Scenes: plan on what depth cameras see (partial, noisy, unsegmented clouds of a cluttered table).
+
+:func:`load_scene` reads depth images or point clouds with their cameras' intrinsics and poses
+into a :class:`Scene`: the observed surface above the table (what ISF fits), the table (an
+obstacle plane) and the unseen space behind the observations (an obstacle too). :func:`isf.plan`
+takes a scene wherever it takes an object. See docs/tutorial-depth-camera.md for the frames.
+"""
+
+from .camera import CameraIntrinsics, camera_pose, parse_intrinsics
+from .loading import NORMAL_NEIGHBOURS, SCENE_VOXEL, Scene, load_scene
+from .segments import SceneSegments, segment_surface
+from .table import TABLE_MARGIN, find_table
+from .unseen import UnseenSpace, ViewDepth
+from .views import SceneView
+
+__all__ = [
+    "CameraIntrinsics",
+    "NORMAL_NEIGHBOURS",
+    "SCENE_VOXEL",
+    "Scene",
+    "SceneSegments",
+    "SceneView",
+    "TABLE_MARGIN",
+    "UnseenSpace",
+    "ViewDepth",
+    "camera_pose",
+    "find_table",
+    "load_scene",
+    "parse_intrinsics",
+    "segment_surface",
+]
