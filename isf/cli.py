@@ -73,6 +73,10 @@ def _parser() -> argparse.ArgumentParser:
                    help="the frame of a --scene point cloud's coordinates (default camera)")
     p.add_argument("--samples", "-n", type=int, default=60, help="samples to evaluate (default 60)")
     p.add_argument("--sampler", "-s", default="regret", help="sampler name (default regret; see 'isf samplers')")
+    p.add_argument("--sampler-param", action="append", default=[], metavar="KEY=VALUE",
+                   help="a parameter of the sampler, checked by the sampler itself, e.g. "
+                        "orientation=random (the paper's) or n_clusters=8 for regret (repeatable; "
+                        "numbers are read as numbers; docs/samplers.md lists them)")
     p.add_argument("--seed", type=int, default=0, help="random seed, >= 0 (default 0)")
     p.add_argument("--batch-size", type=int, default=None, metavar="B",
                    help="samples fitted at once in lockstep (default: isf.plan's, one at a time: "
@@ -313,7 +317,8 @@ def _cmd_plan(args: argparse.Namespace) -> int:
         else:
             first = open_object(args.object_specs[0], units=args.units, scale=args.scale)
             obstacles = [Plane.table(args.table)] if args.table is not None else []
-        get_sampler(args.sampler)  # a bad name fails before the kernels load
+        args.sampler_params = _sampler_params(args.sampler_param)
+        get_sampler(args.sampler, **args.sampler_params)  # a bad name or parameter fails now
         with interrupts.immediate():
             _compile_kernels(quiet=args.quiet)
         show = not args.quiet and sys.stderr.isatty()
@@ -367,6 +372,22 @@ def _check_inputs(args: argparse.Namespace) -> None:
                                 "of the object's frame: pass the table's height in metres")
 
 
+def _sampler_params(words: list[str]) -> dict[str, object]:
+    """``--sampler-param KEY=VALUE`` words as keyword arguments: a value that reads as an
+    integer or a number becomes one, any other stays text (the sampler checks them)."""
+    params: dict[str, object] = {}
+    for key, text in _pairs(words, "--sampler-param").items():
+        for kind in (int, float):
+            try:
+                params[key] = kind(text)
+                break
+            except ValueError:
+                continue
+        else:
+            params[key] = text
+    return params
+
+
 def _open_scene(args: argparse.Namespace):
     """The :class:`isf.scene.Scene` of ``isf plan --scene``."""
     from .scene import load_scene
@@ -385,6 +406,7 @@ def _plan_one(args, index, spec, out, obj, gripper, config, repair, obstacles, b
     from .object.specs import open_object
     from .planning.plan_json import write_plan_json
     from .planning.planner import plan
+    from .samplers import get_sampler
 
     def progress(done: int, total: int, grasp) -> None:
         interrupts.check()
@@ -397,7 +419,9 @@ def _plan_one(args, index, spec, out, obj, gripper, config, repair, obstacles, b
             # the others load in turn: one object (and what its plan builds) in memory at a time
             if obj is None:
                 obj = open_object(spec, units=args.units, scale=args.scale)
-            result = plan(gripper, obj, samples=args.samples, sampler=args.sampler,
+            sampler = get_sampler(args.sampler, **args.sampler_params)  # one per object: a
+            # sampler holds the object it was reset on, which must go with its plan
+            result = plan(gripper, obj, samples=args.samples, sampler=sampler,
                           seed=args.seed, batch_size=args.batch_size, workers=args.workers,
                           config=config, obstacles=obstacles, repair_collisions=repair,
                           progress=progress)

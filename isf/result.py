@@ -112,7 +112,9 @@ class FitResult:
             ``contact_distance`` of the object.
         iterations: ISF iterations over all levels.
         status: why the fit stopped.
-        history: one record per ISF iteration.
+        history: one record per ISF iteration. A grasp the planner repaired
+            (:attr:`isf.Grasp.repaired`) keeps the history of the fit it repaired, which ends
+            before the repair moved it.
         time: wall time from the start to the end of the fit, seconds (fits run together by
             :func:`isf.fit_many` or :func:`isf.plan` share that time with each other).
     """

@@ -248,3 +248,31 @@ def test_tag_writes_a_loadable_copy_of_a_stock_urdf(tmp_path):
     assert proc.returncode == 0 and "right_finger_pad" in proc.stdout
     proc = run("tag", str(stock), "--out", str(tmp_path / "x.urdf"), "--approach", "1,2")
     assert proc.returncode == 2 and proc.stderr.startswith("isf: error:")
+
+
+def test_sampler_parameters_from_the_command_line_give_the_library_plan(tmp_path):
+    out = tmp_path / "grasps.json"
+    proc = run("plan", "--gripper", "paper-parallel", "--object", "shape:cylinder", "--samples", "5",
+               "--sampler-param", "orientation=random", "--sampler-param", "n_clusters=3",
+               "--out", str(out))
+    assert proc.returncode in (0, 1), proc.stderr
+    library = isf.plan("paper-parallel", isf.open_object("shape:cylinder"), samples=5,
+                       sampler=isf.get_sampler("regret", orientation="random", n_clusters=3))
+    data = json.loads(out.read_text())
+    np.testing.assert_allclose([g["T_object_gripper"] for g in data["grasps"]],
+                               [g.T_object_gripper for g in library.grasps], atol=1e-12)
+    assert {g["sampler"]["cluster"] for g in data["grasps"]} <= {0, 1, 2}
+
+
+@pytest.mark.parametrize("param, message", [
+    ("n_clusters=0", "n_clusters must be an integer >= 1"),
+    ("orientation=sideways", "orientation must be one of"),
+    ("clusters=3", "accepted parameters"),
+    ("gamma", "must look like NAME=VALUE"),
+])
+def test_bad_sampler_parameters_exit_2_in_one_line(tmp_path, param, message):
+    out = tmp_path / "grasps.json"
+    proc = run("plan", "--gripper", "paper-parallel", "--object", "shape:cylinder",
+               "--sampler-param", param, "--out", str(out))
+    assert proc.returncode == 2 and message in proc.stderr, proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1 and not out.exists()

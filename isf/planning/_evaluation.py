@@ -21,6 +21,7 @@ import time
 from collections import deque
 from collections.abc import Hashable, Iterator, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
+from typing import NamedTuple
 
 import numpy as np
 
@@ -33,7 +34,15 @@ from ..repair.clearance import ClearanceRepair, RepairConfig, repair_penetration
 from ..result import FitResult
 from ..samplers import Proposal
 
-__all__ = ["LockstepEvaluations", "SampleJudge", "SampleWorker", "ThreadedEvaluations"]
+__all__ = ["Judged", "LockstepEvaluations", "SampleJudge", "SampleWorker", "ThreadedEvaluations"]
+
+
+class Judged(NamedTuple):
+    """A judged fit: the grasp kept, its collision report, and whether it is the repair's."""
+
+    result: FitResult
+    report: CollisionReport
+    repaired: bool
 
 
 class SampleJudge:
@@ -65,14 +74,14 @@ class SampleJudge:
             hidden=hidden)
         self.fit_time = self.collision_time = 0.0
 
-    def judge(self, result: FitResult) -> tuple[FitResult, CollisionReport]:
+    def judge(self, result: FitResult) -> Judged:
         """The grasp to keep for a fit and its collision report: the fit itself, or its repair
         when the fit collides and the repaired grasp does not."""
         t0 = time.perf_counter()
         report = self.checker.check(result.T_object_gripper, result.q)
         self.collision_time += time.perf_counter() - t0
         if self.repairer is None or report.collision_free:
-            return result, report
+            return Judged(result, report, repaired=False)
         t1 = time.perf_counter()
         repaired = repair_penetration(self.gripper, self.obj, result, fit_config=self.config,
                                       repairer=self.repairer)
@@ -80,7 +89,9 @@ class SampleJudge:
         again = self.checker.check(repaired.T_object_gripper, repaired.q)
         self.collision_time += time.perf_counter() - t2
         self.fit_time += t2 - t1
-        return (repaired, again) if again.collision_free else (result, report)
+        if again.collision_free:
+            return Judged(repaired, again, repaired=True)
+        return Judged(result, report, repaired=False)
 
 
 class SampleWorker(SampleJudge):
@@ -93,8 +104,7 @@ class SampleWorker(SampleJudge):
         super().__init__(gripper, obj, config, **judge_options)
         self.fitter = LockstepFitter(gripper, obj, config)
 
-    def evaluate(self, T_object_gripper: np.ndarray,
-                 q: np.ndarray | None) -> tuple[FitResult, CollisionReport]:
+    def evaluate(self, T_object_gripper: np.ndarray, q: np.ndarray | None) -> Judged:
         """Fit from palm pose ``T_object_gripper`` (4, 4) and joints ``q`` (n_joints,; None:
         the gripper's initial joints), then :meth:`judge` the fit.
 
@@ -110,7 +120,8 @@ class SampleWorker(SampleJudge):
         return self.judge(finished[0][1])
 
 
-Evaluated = tuple[Hashable, Proposal, FitResult, CollisionReport]
+Evaluated = tuple[Hashable, Proposal, FitResult, CollisionReport, bool]
+"""A finished sample: its key, its proposal and :class:`Judged`'s three fields."""
 """A sample back from an evaluator: its index, its proposal, the grasp kept and its collision
 report."""
 

@@ -51,6 +51,7 @@ def _grasp_to_dict(rank: int, grasp: Grasp) -> dict:
         "sample_index": grasp.sample_index,
         "valid": bool(grasp.valid),
         "pieces": grasp.pieces,
+        "repaired": bool(grasp.repaired),
     }
 
 

@@ -96,6 +96,10 @@ class Grasp:
         pieces: on a scene, how many of its surface pieces the contact surfaces rest on
             (:meth:`isf.scene.SceneSegments.touched`; more than 1 is likely two objects);
             None when planning on an object.
+        repaired: True when the fit collided and this is its collision repair
+            (:func:`isf.repair.clearance.repair_penetration`): then ``fit`` is the repaired
+            grasp, whose ``history`` is the ISF fit's and ends before the repair moved it (the
+            last record's joints are not the grasp's).
     """
 
     fit: FitResult
@@ -103,6 +107,7 @@ class Grasp:
     sampler_record: dict
     sample_index: int
     pieces: int | None = None
+    repaired: bool = False
 
     @property
     def T_object_gripper(self) -> np.ndarray:
@@ -325,12 +330,12 @@ def plan(
 
     grasps: list[Grasp] = []
 
-    def record(index: int, proposal: Proposal, result: FitResult,
-               report: CollisionReport) -> Outcome:
+    def record(index: int, proposal: Proposal, result: FitResult, report: CollisionReport,
+               repaired: bool) -> Outcome:
         """Keep a sample's grasp and return its outcome for the sampler."""
         pieces = None if scene is None else scene.segments.touched(
             gripper, result.T_object_gripper, result.q, config.contact_distance)
-        grasp = Grasp(result, report, dict(proposal.record), index, pieces)
+        grasp = Grasp(result, report, dict(proposal.record), index, pieces, repaired)
         grasps.append(grasp)
         if progress is not None:
             progress(len(grasps), samples, grasp)
