@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pytest
+from _depth_camera import look_at
 
 import isf
 from isf.exceptions import InvalidInputError
@@ -67,18 +68,9 @@ class Can:
         return np.minimum(side, top)
 
 
-def camera(eye, target=(0.0, 0.0, 0.04)) -> np.ndarray:
-    """``T_scene_camera`` of a camera at ``eye`` looking at ``target`` (x right, y down, z
-    forward), metres."""
-    eye = np.asarray(eye, float)
-    z = np.asarray(target, float) - eye
-    z /= np.linalg.norm(z)
-    x = np.cross(z, [0.0, 0.0, 1.0])
-    x /= np.linalg.norm(x)
-    T = np.eye(4)
-    T[:3, :3] = np.column_stack([x, np.cross(z, x), z])
-    T[:3, 3] = eye
-    return T
+def camera(eye) -> np.ndarray:
+    """``T_scene_camera`` of a camera at ``eye`` looking at the scene's centre (metres)."""
+    return look_at(eye, (0.0, 0.0, 0.04))
 
 
 def depth_view(shapes, T_scene_camera: np.ndarray, seed: int) -> SceneView:

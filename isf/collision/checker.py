@@ -306,7 +306,7 @@ class CollisionChecker:
             [] if hidden is None else [hidden.name])
         self._elements, packed, state = _prepared(gripper, links)
         if hidden is not None:
-            self._hidden_samples = _HiddenSamples.of(self._elements)
+            self._hidden_samples = _HiddenSamples.of(packed)
         self._triangles, self._triangle_start = packed["_triangles"], packed["_triangle_start"]
         self._surface = _object_surface(obj, state)
         self._points = np.asarray(obj.points, dtype=float)  # probes for object points inside elements
@@ -411,20 +411,21 @@ class CollisionChecker:
 
 # ---------------------------------------------------------------------- set-up
 class _HiddenSamples(NamedTuple):
-    """Every element's surface samples stacked, for the hidden region's depths."""
+    """Every element's surface samples, element by element, for the hidden region's depths."""
 
-    points: np.ndarray  # (S, 3) link frames, element by element
+    points: np.ndarray  # (S, 3) link frames: the checks' own samples (Patches.samples)
     owner: np.ndarray  # (S,) element of each sample
     starts: np.ndarray  # (E,) first sample of each element
     non_contact: np.ndarray  # (E,) bool: the element is not a contact element
 
     @classmethod
-    def of(cls, elements: list[Element]) -> _HiddenSamples:
-        counts = np.array([len(e.samples) for e in elements])
-        return cls(np.concatenate([e.samples for e in elements]).astype(float),
-                   np.repeat(np.arange(len(elements)), counts),
-                   np.r_[0, np.cumsum(counts)[:-1]].astype(np.int64),
-                   np.array([not e.contact for e in elements]))
+    def of(cls, packed: dict) -> _HiddenSamples:
+        """From :func:`_packed`'s arrays, whose elements are contiguous runs of patches."""
+        samples = packed["_samples"]
+        starts = packed["_patch_start"][packed["_element_patches"][:-1]]
+        counts = np.diff(np.r_[starts, len(samples)])
+        return cls(samples, np.repeat(np.arange(len(starts)), counts), starts,
+                   ~packed["_contact"])
 
 
 class _Prepared(NamedTuple):

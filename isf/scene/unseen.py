@@ -57,6 +57,11 @@ class ViewDepth:
         occlusion[np.isneginf(occlusion)] = np.inf
         return cls(occlusion, intrinsics, np.linalg.inv(T_scene_camera))
 
+    @property
+    def camera_position(self) -> np.ndarray:
+        """The camera's optical centre in the scene frame, (3,), metres."""
+        return np.linalg.inv(self.T_camera_scene)[:3, 3]
+
     def depth_behind(self, points: np.ndarray) -> np.ndarray:
         """How far behind this camera's observations each point lies, metres along the optical
         axis: > 0 behind, <= 0 in front; NaN where the camera has no opinion.
@@ -121,8 +126,7 @@ class UnseenSpace:
         for view in self.views:
             behind = view.depth_behind(points)
             closer = ~np.isnan(behind) & (behind < best)
-            camera = np.linalg.inv(view.T_camera_scene)[:3, 3]
-            towards = camera - points[closer]
+            towards = view.camera_position - points[closer]
             out[closer] = towards / np.linalg.norm(towards, axis=1, keepdims=True)
             best[closer] = behind[closer]
         return out

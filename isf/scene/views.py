@@ -20,7 +20,7 @@ Sources
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -81,10 +81,11 @@ class Observation:
     intrinsics: CameraIntrinsics
     T_scene_camera: np.ndarray
     name: str = "scene"
-    camera_position: np.ndarray = field(init=False)
 
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "camera_position", self.T_scene_camera[:3, 3].copy())
+    @property
+    def camera_position(self) -> np.ndarray:
+        """The camera's optical centre in the scene frame, (3,), metres."""
+        return self.T_scene_camera[:3, 3]
 
 
 def observe(view: SceneView) -> Observation:
