@@ -302,3 +302,13 @@ def test_table_auto_and_camera_options_need_a_scene(tmp_path):
         proc = _isf("plan", "--gripper", "paper-parallel", "--object", "shape:cylinder",
                     "--out", str(tmp_path / "x.json"), *extra)
         assert proc.returncode == 2 and message in proc.stderr, proc.stderr
+
+
+def test_camera_keywords_beside_views_are_refused_in_one_line(box_view):
+    depth, intrinsics, T, _ = box_view
+    view = SceneView(depth, intrinsics, T)
+    with pytest.raises(InvalidInputError, match="T_scene_camera belong in each SceneView"):
+        load_scene(view, T_scene_camera=T)
+    with pytest.raises(InvalidInputError, match="cloud_frame belong in each SceneView"):
+        load_scene([view], cloud_frame="scene")
+    assert load_scene(view, cloud_frame="camera").surface.n_points > 0

@@ -163,12 +163,11 @@ def load_scene(
 
 def _views(source, **single) -> list[SceneView]:
     """The views of :func:`load_scene`'s ``source``; the keywords describe a single source."""
-    defaults = dict(intrinsics=None, T_scene_camera=None, depth_scale=None, cloud_frame="camera")
     if isinstance(source, SceneView) or (
             isinstance(source, Sequence) and not isinstance(source, str) and source
             and all(isinstance(v, SceneView) for v in source)):
         changed = [key for key, value in single.items()
-                   if value is not defaults[key] and value != defaults[key]]
+                   if value is not None and not (key == "cloud_frame" and value == "camera")]
         if changed:
             raise InvalidInputError(f"load_scene: {', '.join(changed)} belong in each SceneView "
                                     "when views are given")
