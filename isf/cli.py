@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import importlib
 import logging
 import math
 import os
@@ -32,6 +33,10 @@ from .exceptions import InvalidInputError, ISFError, ISFWarning
 __all__ = ["main"]
 
 EXIT_OK, EXIT_NOTHING_FOUND, EXIT_USAGE, EXIT_BUG, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
+
+COMMAND_MODULES: tuple[str, ...] = ()
+"""Subcommands defined in modules of :mod:`isf.commands`, in the order ``isf --help`` lists them
+(each module's ``add_parser(subparsers)`` adds its parser and sets ``run``)."""
 
 REPORT_BUGS_TO = "isf's issue tracker"
 """Where the exit-3 message asks users to report a bug."""
@@ -149,6 +154,9 @@ def _parser() -> argparse.ArgumentParser:
         "cached are loaded, not compiled again."))
     p.add_argument("-q", "--quiet", action="store_true", help="do not count the kernels on stderr")
     p.set_defaults(run=_cmd_compile)
+
+    for name in COMMAND_MODULES:
+        importlib.import_module(f"{__package__}.commands.{name}").add_parser(sub)
     return parser
 
 
