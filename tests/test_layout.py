@@ -122,7 +122,7 @@ def test_subpackages_import_each_other_without_cycles():
 def test_every_package_lists_its_public_names_sorted(namespace):
     module = importlib.import_module(namespace)
     names = getattr(module, "__all__", None)
-    if namespace == "isf.compiled":  # documentation only: its modules are imported by name
+    if namespace in ("isf.commands", "isf.compiled"):  # documentation only: modules imported by name
         assert names is None
         return
     assert names, f"{namespace} has no __all__"
