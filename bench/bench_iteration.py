@@ -90,7 +90,7 @@ def fit_one_by_one(gripper, obj, proposals, config) -> dict:
 
 def _summary(results, wall: float, cpu: float) -> dict:
     iterations = sum(r.iterations for r in results)
-    levels = np.array([rec.level for r in results for rec in r.history], dtype=int)
+    levels = np.array([rec.level for r in results for rec in r.history[1:]], dtype=int)  # no start
     return {"per_iteration": wall / max(iterations, 1),
             "cpu_per_iteration": cpu / max(iterations, 1),
             "iterations": iterations / len(results),

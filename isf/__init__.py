@@ -25,6 +25,7 @@ _SOURCES = {  # each public name -> the module (relative to isf) that defines it
     "CollisionReport": "collision.checker",
     "ConfigError": "exceptions",
     "ContactSurface": "gripper.model",
+    "Diversity": "planning.diversity",
     "FitConfig": "config",
     "FitResult": "result",
     "FitStatus": "result",
@@ -49,6 +50,7 @@ _SOURCES = {  # each public name -> the module (relative to isf) that defines it
     "PlanStats": "planning.planner",
     "Plane": "collision.checker",
     "PluginLoadError": "exceptions",
+    "QualityConfig": "quality",
     "Proposal": "samplers",
     "QPStepError": "exceptions",
     "RegistrationError": "exceptions",
@@ -65,13 +67,17 @@ _SOURCES = {  # each public name -> the module (relative to isf) that defines it
     "fit": "fitting.fit",
     "fit_many": "fitting.fit",
     "get_sampler": "samplers",
+    "grasp_quality": "quality",
     "inspect_gripper": "gripper.loading",
+    "load_dataset": "batch",
     "load_gripper": "gripper.loading",
     "load_object": "object.loading",
     "load_scene": "scene",
     "open_object": "object.specs",
     "plan": "planning.planner",
     "register_sampler": "samplers",
+    "run_batch": "batch",
+    "validate_plan": "simulation",
 }
 
 __all__ = sorted([*_SOURCES, "__version__"])  # noqa: PLE0605 (a new name is one line above)

@@ -34,7 +34,7 @@ __all__ = ["main"]
 
 EXIT_OK, EXIT_NOTHING_FOUND, EXIT_USAGE, EXIT_BUG, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 
-COMMAND_MODULES: tuple[str, ...] = ()
+COMMAND_MODULES: tuple[str, ...] = ("show", "export", "validate", "batch")
 """Subcommands defined in modules of :mod:`isf.commands`, in the order ``isf --help`` lists them
 (each module's ``add_parser(subparsers)`` adds its parser and sets ``run``)."""
 
@@ -106,7 +106,32 @@ def _parser() -> argparse.ArgumentParser:
                         "points from the surface")
     p.add_argument("--top", type=int, default=None, metavar="K", help="keep only the best K grasps in the output")
     p.add_argument("--out", default=None,
-                   help="output JSON file of one object (default grasps.json)")
+                   help="output JSON file of one object (default grasps.json); '-' writes the JSON "
+                        "to stdout (the table and messages then go to stderr)")
+    p.add_argument("--pregrasp-distance", type=float, default=None, metavar="M",
+                   help="how far each grasp's pre-grasp pose backs off along the approach axis, "
+                        "fingers opened (default 0.1 m)")
+    p.add_argument("--duplicate-distance", type=float, default=0.01, metavar="M",
+                   help="a grasp whose TCP lies within M of a better grasp's (and within "
+                        "--duplicate-angle) repeats it: it is marked duplicate_of and ranked after "
+                        "the distinct grasps (default 0.01 m)")
+    p.add_argument("--duplicate-angle", type=float, default=30.0, metavar="DEG",
+                   help="largest TCP orientation difference of a duplicate, degrees, after the "
+                        "gripper's symmetric turns (default 30)")
+    p.add_argument("--symmetry", default="auto", metavar="auto|N",
+                   help="order of the gripper's rotational symmetry about its approach axis (2: a "
+                        "parallel jaw turned by 180 degrees grips the same way); auto (default) "
+                        "detects it, 1 declares none")
+    p.add_argument("--keep-duplicates", action="store_true",
+                   help="keep the plain ranking: no grasp is marked duplicate_of")
+    p.add_argument("--rank", choices=("quality", "fit"), default="quality",
+                   help="rank valid grasps by what their contacts resist (quality, default: holding "
+                        "the object's weight in six gravity directions, then the Ferrari-Canny "
+                        "epsilon, then the fitting error; docs/quality.md) or by fitting error "
+                        "alone (fit, the paper's ranking)")
+    p.add_argument("--friction", type=float, default=0.5, metavar="MU",
+                   help="Coulomb friction coefficient of the contacts for --rank quality "
+                        "(default 0.5)")
     p.add_argument("--out-dir", default=None, metavar="DIR",
                    help="write one JSON per object into DIR (created if missing), named after "
                         "the object: part.json for part.stl, cylinder.json for shape:cylinder")
@@ -135,6 +160,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--palm-link", default=None, help="the link that approaches the object (default: root)")
     p.add_argument("--approach", default="auto",
                    help="approach direction in the palm frame: auto (default), none, or X,Y,Z")
+    p.add_argument("--tcp", default="auto", metavar="auto|none|X,Y,Z",
+                   help="tool-centre point in the palm link's frame, metres (<isf:gripper "
+                        "tcp_link tcp_origin>): auto (default) puts it between the fingertips")
     p.add_argument("--initial", action="append", default=[], metavar="JOINT=VALUE",
                    help="initial value of an actuated joint (repeatable)")
     p.add_argument("--package", action="append", default=[], metavar="PKG=DIR",
@@ -146,6 +174,8 @@ def _parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("inspect", help="show a gripper's joints, limits, contact surfaces and problems")
     p.add_argument("gripper", help="bundled gripper name or URDF path")
+    p.add_argument("--export", default=None, metavar="FILE",
+                   help="also write the gripper with its contact surfaces' faces in red (PLY/GLB/OBJ)")
     p.set_defaults(run=_cmd_inspect)
 
     p = sub.add_parser("compile", help="compile the numerical kernels into the cache now", description=(
@@ -314,6 +344,11 @@ def _cmd_plan(args: argparse.Namespace) -> int:
                                     "batches or worker threads")
         if args.no_repair and args.repair:
             raise InvalidInputError("--no-repair and --repair exclude each other: drop one")
+        args.diversity = _diversity(args)
+        args.quality_config = _quality_config(args)
+        if args.pregrasp_distance is not None and not 0 <= args.pregrasp_distance < math.inf:
+            raise InvalidInputError(f"--pregrasp-distance must be a distance >= 0 in metres, got "
+                                    f"{args.pregrasp_distance}")
         config = config_from_text(FitConfig, _pairs(args.fit, "--fit"))
         repair = False if args.no_repair else (
             config_from_text(RepairConfig, _pairs(args.repair, "--repair")) if args.repair else True)
@@ -380,6 +415,60 @@ def _check_inputs(args: argparse.Namespace) -> None:
                                 "of the object's frame: pass the table's height in metres")
 
 
+def _quality_config(args: argparse.Namespace):
+    """The :class:`isf.quality.QualityConfig` of ``isf plan --rank quality`` (None with
+    ``--rank fit``).
+
+    Raises:
+        InvalidInputError: ``--friction`` is negative or not finite.
+    """
+    from .quality import QualityConfig
+
+    if args.rank == "fit":
+        return None
+    return QualityConfig(friction=args.friction)
+
+
+def _diversity(args: argparse.Namespace):
+    """The :class:`isf.planning.diversity.Diversity` of ``isf plan``, or None
+    (``--keep-duplicates``).
+
+    Raises:
+        InvalidInputError: a negative distance or angle, or ``--symmetry`` neither ``auto`` nor
+            an integer >= 1.
+    """
+    from .planning.diversity import Diversity
+
+    if args.keep_duplicates:
+        return None
+    symmetry = args.symmetry
+    if symmetry != "auto":
+        try:
+            symmetry = int(symmetry)
+        except ValueError:
+            raise InvalidInputError(f"--symmetry {args.symmetry!r} must be auto or an integer "
+                                    ">= 1") from None
+    return Diversity(args.duplicate_distance, math.radians(args.duplicate_angle), symmetry)
+
+
+def _provenance(args: argparse.Namespace, spec: str):
+    """The :class:`isf.planning.plan_json.Provenance` of one object of ``isf plan``: its file
+    (an ``asset:`` spec's file too), units, scale and every option of the command."""
+    from .planning.plan_json import Provenance
+
+    object_file = None
+    if spec.startswith("asset:"):
+        from .assets import benchmark_object
+
+        object_file = benchmark_object(spec.removeprefix("asset:")).path
+    elif not spec.startswith("shape:"):
+        object_file = spec
+    parameters = {key: value for key, value in vars(args).items()
+                  if key not in ("run", "diversity", "quality_config") and isinstance(
+                      value, (str, int, float, bool, list, dict, type(None)))}
+    return Provenance(object_file, args.units, args.scale, {"object": spec, **parameters})
+
+
 def _sampler_params(words: list[str]) -> dict[str, object]:
     """``--sampler-param KEY=VALUE`` words as keyword arguments: a value that reads as an
     integer or a number becomes one, any other stays text (the sampler checks them)."""
@@ -412,9 +501,12 @@ def _plan_one(args, index, spec, out, obj, gripper, config, repair, obstacles, b
     ``obj`` is the object already opened, or None to open ``spec``; SIGINT is acted on between
     samples (``interrupts``)."""
     from .object.specs import open_object
-    from .planning.plan_json import write_plan_json
+    from .planning.plan_json import plan_json_text, write_plan_json
     from .planning.planner import plan
     from .samplers import get_sampler
+
+    to_stdout = str(out) == "-"  # --out -: the JSON on stdout, everything else on stderr
+    messages = sys.stderr if to_stdout else sys.stdout
 
     def progress(done: int, total: int, grasp) -> None:
         interrupts.check()
@@ -432,26 +524,34 @@ def _plan_one(args, index, spec, out, obj, gripper, config, repair, obstacles, b
             result = plan(gripper, obj, samples=args.samples, sampler=sampler,
                           seed=args.seed, batch_size=args.batch_size, workers=args.workers,
                           config=config, obstacles=obstacles, repair_collisions=repair,
-                          progress=progress)
+                          progress=progress, diversity=args.diversity, rank=args.rank,
+                          quality=args.quality_config)
         finally:
             if bar is not None:
                 bar.close()
-        out.parent.mkdir(exist_ok=True)  # --out-dir: made once there is a plan to write
-        write_plan_json(result, out, top=args.top)
+        options = dict(top=args.top, provenance=_provenance(args, spec))
+        if args.pregrasp_distance is not None:
+            options["pregrasp_distance"] = args.pregrasp_distance
+        if to_stdout:
+            sys.stdout.write(plan_json_text(result, **options))
+            sys.stdout.flush()
+        else:
+            out.parent.mkdir(exist_ok=True)  # --out-dir: made once there is a plan to write
+            write_plan_json(result, out, **options)
     except ISFError as err:
         if n_objects == 1:
             raise
         raise ISFError(f"{spec}: {_one_line(err)} (the {index} object(s) before it are "
                        "planned, their files complete)") from err
     if not args.quiet:
-        print(_summary(result, args.top or 10))
+        print(_summary(result, args.top or 10), file=messages)
     s = result.stats
     written = len(result.grasps) if args.top is None else min(args.top, len(result.grasps))
     found = f"{s.valid}/{s.samples} valid grasps" if s.valid else "no valid grasp found: 0/" \
         f"{s.samples} valid"
     print(f"{found} (collision-free, every contact surface touching; {s.collision_free} "
-          f"collision-free) in {s.total_time:.2f} s; wrote {written} grasps to {out.resolve()}",
-          flush=True)
+          f"collision-free) in {s.total_time:.2f} s; wrote {written} grasps to "
+          f"{'stdout' if to_stdout else out.resolve()}", file=messages, flush=True)
     return s.valid > 0
 
 
@@ -474,6 +574,8 @@ def _output_paths(specs: list[str], out: str | None, out_dir: str | None) -> lis
         if len(specs) > 1:
             raise InvalidInputError(f"{len(specs)} objects need --out-dir DIR (one JSON per "
                                     "object); --out names the file of one object")
+        if out == "-":
+            return [Path("-")]  # stdout
         return [check_output_path(out or "grasps.json", "--out file")]
     folder = Path(out_dir)
     if not folder.parent.is_dir() or (folder.exists() and not folder.is_dir()):
@@ -584,19 +686,55 @@ def _cmd_tag(args: argparse.Namespace) -> int:
         if len(approach) != 3:
             raise InvalidInputError(f"--approach {args.approach!r} must be auto, none or X,Y,Z")
     preview = tag_urdf(args.urdf, args.out, contacts, palm_link=args.palm_link, approach=approach,
-                       initial=initial, package_dirs=package_dirs, replace_tags=args.replace)
+                       initial=initial, package_dirs=package_dirs, replace_tags=args.replace,
+                       tcp=_tag_tcp(args, links, initial, package_dirs))
     print(preview.format())
     if args.export:
         print(f"selected faces shown in {preview.export(args.export)}")
     return EXIT_OK if preview.ok else EXIT_NOTHING_FOUND
 
 
-def _cmd_inspect(args: argparse.Namespace) -> int:
-    from .gripper.loading import format_report, inspect_gripper
+def _tag_tcp(args: argparse.Namespace, links, initial, package_dirs):
+    """The tool-centre point of ``isf tag --tcp``: suggested, none, or given in the palm link."""
+    from .registration import SuggestedTCP, suggest_tcp
 
+    if args.tcp == "none":
+        return None
+    if args.tcp == "auto":
+        return suggest_tcp(args.urdf, palm_link=args.palm_link, links=links, initial=initial,
+                           package_dirs=package_dirs)
+    try:
+        origin = tuple(float(v) for v in args.tcp.split(","))
+    except ValueError:
+        origin = ()
+    if len(origin) != 3:
+        raise InvalidInputError(f"--tcp {args.tcp!r} must be auto, none or X,Y,Z (metres)")
+    if args.palm_link is None:
+        from .gripper.loading import inspect_gripper
+
+        palm = inspect_gripper(args.urdf).root_link
+    else:
+        palm = args.palm_link
+    return SuggestedTCP(palm, origin)
+
+
+def _cmd_inspect(args: argparse.Namespace) -> int:
+    from .gripper.loading import format_report, inspect_gripper, load_gripper
+    from .registration.occlusion import contact_warnings
+    from .registration.preview import check_export_path, preview_tagged
+
+    if args.export:
+        check_export_path(args.export)
     report = inspect_gripper(args.gripper)
     print(format_report(report))
-    return EXIT_OK if report.ok else EXIT_NOTHING_FOUND
+    if not report.ok:
+        return EXIT_NOTHING_FOUND
+    for warning in contact_warnings(load_gripper(args.gripper)):
+        print(f"warning: {warning}")
+    if args.export:
+        preview = preview_tagged(report.urdf_path, report=report)
+        print(f"contact surfaces shown in {preview.export(args.export)}")
+    return EXIT_OK
 
 
 # ----------------------------------------------------------------------------- output
@@ -623,17 +761,31 @@ def _verdict(grasp) -> str:
     return "valid" if grasp.valid else "collides" if not grasp.collision_free else "no contact"
 
 
+def _contact_cell(grasp) -> str:
+    """The share of each contact surface's points touching the object, percent, in surface
+    order, e.g. ``42/38``: 0 only for a surface that touches nowhere, else at least 1."""
+    return "/".join(str(max(1, round(100 * share)) if share > 0 else 0)
+                    for share in grasp.fit.surface_contact.values())
+
+
 def _summary(result, top: int) -> str:
+    shown = result.grasps[:top]
+    surfaces = list(shown[0].fit.surface_contact) if shown else []
+    width = max([10] + [len(_contact_cell(g)) for g in shown])
     head = (f"{'rank':>4}  {'grasp':<10} {'dist mm':>8} {'misalign deg':>12} {'clear mm':>9}  "
-            f"{'position (m)':<26} joints")
-    lines = [f"{result.gripper} on {result.object}, sampler {result.sampler}, seed {result.seed}", head]
-    for rank, g in enumerate(result.grasps[:top], start=1):
+            f"{'contact %':<{width}}  {'position (m)':<26} joints")
+    lines = [f"{result.gripper} on {result.object}, sampler {result.sampler}, seed {result.seed}"]
+    if surfaces:
+        lines.append(f"contact %: share of each surface's points touching the object "
+                     f"({'/'.join(surfaces)})")
+    lines.append(head)
+    for rank, g in enumerate(shown, start=1):
         p = g.T_object_gripper[:3, 3]
         joints = " ".join(f"{k}={v:.4g}" for k, v in g.joints.items())
         lines.append(
             f"{rank:>4}  {_verdict(g):<10} {g.fit.mean_distance * 1e3:>8.3f} "
             f"{math.degrees(g.fit.normal_misalignment):>12.2f} {g.collision.clearance * 1e3:>9.2f}  "
-            f"{p[0]:+.4f} {p[1]:+.4f} {p[2]:+.4f}     {joints}"
+            f"{_contact_cell(g):<{width}}  {p[0]:+.4f} {p[1]:+.4f} {p[2]:+.4f}     {joints}"
         )
     return "\n".join(lines)
 

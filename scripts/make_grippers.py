@@ -78,6 +78,7 @@ HAND_PAD_SEGMENTS = (10, 12)  # pad mesh quads along (y, z)
 HAND_PROXIMAL_LIMITS = (-0.3, 1.2)
 HAND_DISTAL_LIMITS = (0.0, 1.4)
 HAND_INITIAL = (-0.2, 0.2)  # open pose: pads face the palm axis horizontally
+HAND_TCP_HEIGHT = 0.079  # tool-centre point on the palm axis, at the pads' centres at HAND_INITIAL
 
 EFFORT, VELOCITY = 20.0, 0.5  # nominal URDF <limit> attributes (unused by isf)
 
@@ -200,6 +201,13 @@ def _robot_xml(name: str, comment: str, links, joints, isf_lines) -> str:
     lines += [f"  {line}" for line in isf_lines]
     lines.append("</robot>")
     return "\n".join(lines) + "\n"
+
+
+def _gripper_tag(tcp_height: float) -> str:
+    """The ``<isf:gripper>`` tag: palm, approach +z, the tool-centre point on the palm axis
+    at ``tcp_height`` (between the fingertips), axes those of the palm."""
+    return (f'<isf:gripper palm_link="palm" approach="0 0 1" tcp_link="palm" '
+            f'tcp_origin="{_vec((0.0, 0.0, tcp_height))}"/>')
 
 
 def _mesh(filename: str) -> str:
@@ -347,10 +355,11 @@ def paper_parallel() -> GripperFiles:
             )
         )
     isf = [
-        '<isf:gripper palm_link="palm" approach="0 0 1"/>',
+        _gripper_tag(PAPER_TIP_HEIGHT),
         '<isf:contact name="left_pad" link="left_finger" geometry="left_pad" points="256"/>',
         '<isf:contact name="right_pad" link="right_finger" geometry="right_pad" points="256"/>',
         f'<isf:initial joint="left_finger_joint" value="{_num(PAPER_Q_INITIAL)}"/>',
+        '<isf:closing joint="left_finger_joint" sign="-1"/>',
     ]
     urdf = _robot_xml(
         "paper-parallel",
@@ -376,12 +385,13 @@ def flat_parallel() -> GripperFiles:
             )
         )
     isf = [
-        '<isf:gripper palm_link="palm" approach="0 0 1"/>',
+        _gripper_tag(FLAT_PAD_HEIGHT),
         '<isf:contact name="left_pad" link="left_finger" geometry="left_tip" normal="0 -1 0" '
         'max_angle="0.3" points="256"/>',
         '<isf:contact name="right_pad" link="right_finger" geometry="right_tip" normal="0 1 0" '
         'max_angle="0.3" points="256"/>',
         f'<isf:initial joint="left_finger_joint" value="{_num(FLAT_Q_INITIAL)}"/>',
+        '<isf:closing joint="left_finger_joint" sign="-1"/>',
     ]
     urdf = _robot_xml(
         "flat-parallel",
@@ -410,7 +420,7 @@ def three_finger() -> GripperFiles:
         f'<cylinder radius="{_num(HAND_PALM_RADIUS)}" length="{_num(HAND_PALM_THICKNESS)}"/>'
     )
     links = [Link("palm", [Part("palm_body", palm_geom, palm_origin, material="dark")])]
-    joints, isf = [], ['<isf:gripper palm_link="palm" approach="0 0 1"/>']
+    joints, isf = [], [_gripper_tag(HAND_TCP_HEIGHT)]
     for k, angle_deg in enumerate(HAND_FINGER_ANGLES_DEG):
         theta = math.radians(angle_deg)
         f = f"f{k}"
@@ -442,6 +452,9 @@ def three_finger() -> GripperFiles:
     for k in range(len(HAND_FINGER_ANGLES_DEG)):
         isf.append(f'<isf:initial joint="f{k}_proximal_joint" value="{_num(HAND_INITIAL[0])}"/>')
         isf.append(f'<isf:initial joint="f{k}_distal_joint" value="{_num(HAND_INITIAL[1])}"/>')
+    for k in range(len(HAND_FINGER_ANGLES_DEG)):  # flexion closes every finger
+        isf.append(f'<isf:closing joint="f{k}_proximal_joint" sign="1"/>')
+        isf.append(f'<isf:closing joint="f{k}_distal_joint" sign="1"/>')
     urdf = _robot_xml(
         "three-finger", "Three-finger hand, 2 flexion joints per finger.", links, joints, isf
     )
@@ -564,6 +577,7 @@ def self_check(urdf_path: Path) -> None:
         q0 = np.tile(HAND_INITIAL, 3)
         pin.framesForwardKinematics(model, data, q0)
         pad = meshes["f0_pad"]
+        centres = []
         for k in range(3):
             T = _frame_pose(model, data, f"f{k}_distal")
             c = pad.triangles_center @ T[:3, :3].T + T[:3, 3]
@@ -577,6 +591,9 @@ def self_check(urdf_path: Path) -> None:
                 f"  f{k} pad centre at q0: radius {np.linalg.norm(c[:, :2], axis=1).mean():.4f} m, "
                 f"z {c[:, 2].mean():.4f} m"
             )
+            centres.append(c.mean(axis=0))
+        _check(np.linalg.norm(np.mean(centres, axis=0) - [0, 0, HAND_TCP_HEIGHT]) < 1e-3,
+               "the tool-centre point is not within 1 mm of the pads' centre at q0")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -51,7 +51,7 @@ def test_one_round_equals_the_correspondences_and_ipfo_of_the_python_pieces(name
         np.testing.assert_allclose(result.T_object_gripper, expected.T_object_gripper[0], rtol=0,
                                    atol=1e-12)
         np.testing.assert_allclose(result.q, expected.q[0], rtol=0, atol=1e-12)
-        assert result.history[0].ipfo_errors == pytest.approx(expected.errors[0], rel=1e-9)
+        assert result.history[1].ipfo_errors == pytest.approx(expected.errors[0], rel=1e-9)
 
 
 def test_pausing_for_python_changes_no_number(cylinder, monkeypatch):
@@ -107,16 +107,18 @@ def test_fits_solved_by_osqp_do_not_depend_on_the_fits_before_them(cylinder, mon
 
 
 def test_the_history_reads_as_the_records_of_the_kernels_arrays():
-    """The records, built when first read, hold the numbers the rounds logged: one per
-    iteration, in order, with each level's iterations counted from 1."""
+    """The records, built when first read, hold the numbers the rounds logged: the start, then
+    one per iteration, in order, with each level's iterations counted from 1."""
     gripper = isf.load_gripper("paper-parallel")
     obj = isf.open_object("shape:cylinder")
     result = isf.fit(gripper, obj, T_object_gripper=make_transform(np.eye(3), [0.004, 0.0, 0.002]))
     history = result.history
-    assert len(history) == result.iterations > 0 and repr(history).startswith("History(")
+    assert len(history) == result.iterations + 1 > 1 and repr(history).startswith("History(")
     records = list(history)
     assert all(history[h] is records[h] for h in range(len(history))) and history[-1] is records[-1]
     assert all(a is b for a, b in zip(history[1:3], records[1:3])) and len(history[1:3]) == 2
+    assert records[0].iteration == 0 and records[0].ipfo_errors == ()
+    records = records[1:]  # the iterations
     levels = [r.level for r in records]
     assert levels == sorted(levels, reverse=True)
     for level in set(levels):

@@ -21,8 +21,11 @@ def test_same_seed_same_result(paper_gripper, cylinder):
 
 def test_ranking_and_stats(paper_gripper, cylinder):
     result = isf.plan(paper_gripper, cylinder, samples=12, seed=0)
-    keys = [g.sort_key() for g in result.grasps]
-    assert keys == sorted(keys)
+    for duplicates in (False, True):  # distinct grasps first, each part in ranking order
+        keys = [g.sort_key() for g in result.grasps if (g.duplicate_of is not None) == duplicates]
+        assert keys == sorted(keys)
+    flags = [g.duplicate_of is not None for g in result.grasps]
+    assert flags == sorted(flags)
     assert result.stats.samples == len(result.grasps) == 12
     assert result.stats.collision_free == sum(g.collision_free for g in result.grasps)
     assert result.stats.collision_free > 0

@@ -147,7 +147,7 @@ def test_pads_close_on_a_slab_in_one_iteration_and_stay():
     config = FitConfig()
     result = reference.fit(gripper, slab, np.eye(4), config=config)
     levels = [record.level for record in result.history]
-    assert levels == [3, 3, 2, 1, 0]
+    assert levels == [3, 3, 3, 2, 1, 0]  # the start (iteration 0), then the iterations
     assert result.status is FitStatus.CONVERGED
     np.testing.assert_allclose(result.q, [half_gap], atol=1e-12)
     np.testing.assert_allclose(result.T_object_gripper, np.eye(4), atol=1e-12)

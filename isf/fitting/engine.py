@@ -62,8 +62,8 @@ class LockstepFitter:
         self._obj = kernel.ObjectArrays(obj.points, obj.normals, obj.search.tree)
         self._fit_params = fit_parameters(self.config)
         self._ipfo_params = ipfo_parameters(gripper, self.config)
-        self._history_length = sum(max(1, self.config.max_iterations // 2**level)
-                                   for level in range(self.config.levels))
+        self._history_length = 1 + sum(max(1, self.config.max_iterations // 2**level)
+                                       for level in range(self.config.levels))
         self._keys: list[Hashable] = []
         self._started: list[float] = []
         self._qps: list[FingerStepQP | None] = []
@@ -147,9 +147,10 @@ class LockstepFitter:
     def _records(self, b: int) -> History:
         h = self._history
         count = int(h.count[b])
-        return History(*(a[b, :count].copy() for a in (
-            h.level, h.iteration, h.mean_distance, h.error, h.n_pairs, h.q, h.ipfo_errors,
-            h.n_ipfo)))
+        return History(**{name: array[b, :count].copy() for name, array in (
+            ("level", h.level), ("iteration", h.iteration), ("mean_distance", h.mean_distance),
+            ("error", h.error), ("n_pairs", h.n_pairs), ("q", h.q), ("T_object_gripper", h.T),
+            ("displacement_ratio", h.eta), ("ipfo_errors", h.ipfo_errors), ("n_ipfo", h.n_ipfo))})
 
     def _allocate(self, n_slots: int) -> tuple[kernel.Slots, kernel.HistoryArrays]:
         """Empty slot and history arrays for ``n_slots`` fits."""
@@ -168,7 +169,7 @@ class LockstepFitter:
             mean_distance=np.zeros((S, H)), error=np.zeros((S, H)),
             n_pairs=np.zeros((S, H), np.int64), q=np.zeros((S, H, n)),
             ipfo_errors=np.zeros((S, H, n_ipfo)), n_ipfo=np.zeros((S, H), np.int64),
-            count=np.zeros(S, np.int64))
+            count=np.zeros(S, np.int64), T=np.zeros((S, H, 4, 4)), eta=np.zeros((S, H)))
         return slots, history
 
     def _grow(self) -> int:
@@ -241,7 +242,7 @@ def _scored(gripper: Gripper, obj: ObjectSurface, config: FitConfig, grip: kerne
         n_pairs=len(score.rows), contact_points=score.points[score.rows],
         object_points=obj.points[score.targets],
         surface_contact=surface_contact,
-        iterations=len(history), status=status, history=history, time=elapsed,
+        iterations=max(0, len(history) - 1), status=status, history=history, time=elapsed,
     )
 
 

@@ -17,6 +17,9 @@ ends. One round, for each running fit:
 3. the new pose's level points, the displacement ratio ``eta``, the history record, and the
    stop rule (next level, or the end of the fit).
 
+A fit's first round also records its iteration 0 (:func:`record_start`): the start pose with the
+pairs matched there, before IPFO moves it.
+
 Nearest points
 --------------
 Each fit keeps, per contact point, the object point found nearest in its last match. The next
@@ -51,7 +54,7 @@ from .moment_kernels import (
 __all__ = ["CONVERGED", "EMPTY", "FINISHED", "IDLE", "LOST_CONTACT", "MAX_ITERATIONS",
            "PENDING", "ROUNDS", "RUNNING", "FitParameters", "GripperArrays", "HistoryArrays",
            "ObjectArrays", "Round", "RoundPairs", "Score", "Slots", "enter_level", "finish_round",
-           "plane_distance", "row_dot", "run", "score_state"]
+           "plane_distance", "record_start", "row_dot", "run", "score_state"]
 
 EMPTY, RUNNING, CONVERGED, MAX_ITERATIONS, LOST_CONTACT = -1, 0, 1, 2, 3
 """Slot states (a free slot, a running fit, and the three ways a fit ends)."""
@@ -102,18 +105,21 @@ class Slots(NamedTuple):
 
 
 class HistoryArrays(NamedTuple):
-    """Every fit's record of each ISF iteration, in place (S slots, H iterations at most, I IPFO
-    alternations at most; :class:`isf.result.History` takes the first eight fields).
+    """Every fit's record of its start (iteration 0) and of each ISF iteration, in place (S slots,
+    H records at most, I IPFO alternations at most; :class:`isf.result.History` reads them).
 
     Attributes:
-        level, iteration: pyramid level and iteration on it, (S, H) int64.
+        level, iteration: pyramid level and iteration on it (0: the start), (S, H) int64.
         mean_distance: mean absolute point-to-plane distance of the pairs, (S, H) float64, m.
-        error: E after IPFO, (S, H) float64, m^2.
+        error: E after IPFO (at the start: before it), (S, H) float64, m^2.
         n_pairs: pairs, (S, H) int64.
         q: joints after the iteration, (S, H, n) float64.
         ipfo_errors: IPFO's E after each kept alternation, (S, H, I) float64, m^2.
         n_ipfo: entries of each ``ipfo_errors`` row, (S, H) int64.
         count: records of each slot, (S,) int64.
+        T: palm pose ``T_object_gripper`` after the iteration, (S, H, 4, 4) float64.
+        eta: the stop rule's displacement ratio after the iteration (NaN at the start),
+            (S, H) float64.
     """
 
     level: np.ndarray
@@ -125,6 +131,8 @@ class HistoryArrays(NamedTuple):
     ipfo_errors: np.ndarray
     n_ipfo: np.ndarray
     count: np.ndarray
+    T: np.ndarray
+    eta: np.ndarray
 
 
 class GripperArrays(NamedTuple):
@@ -496,6 +504,7 @@ def finish_round(slots, history, grip, fit_params, pairs, state):
     h_level, h_iteration, h_distance = history.level, history.iteration, history.mean_distance
     h_error, h_pairs, h_q = history.error, history.n_pairs, history.q
     h_ipfo, h_n_ipfo, h_count = history.ipfo_errors, history.n_ipfo, history.count
+    h_T, h_eta = history.T, history.eta
     ended = 0
     for f in range(len(fits)):
         b = fits[f]
@@ -515,7 +524,7 @@ def finish_round(slots, history, grip, fit_params, pairs, state):
         h_level[b, h], h_iteration[b, h] = level, iteration[b]
         h_distance[b, h], h_error[b, h] = distance[f] / n_pairs[f], error[f]
         h_pairs[b, h] = n_pairs[f]
-        h_q[b, h] = q[b]
+        h_q[b, h], h_T[b, h], h_eta[b, h] = q[b], T[b], eta[b]
         h_ipfo[b, h], h_n_ipfo[b, h] = log[f], n_log[f]
         h_count[b] = h + 1
         eps = 2.0 ** level * tolerance
@@ -527,6 +536,36 @@ def finish_round(slots, history, grip, fit_params, pairs, state):
             else:
                 enter_level(b, level - 1, slots, grip)
     return ended
+
+
+@kernel
+def record_start(slots, history, pairs, state):
+    """Iteration 0 of the round's fits that have no record yet: their start pose and joints,
+    the pairs matched there, their mean distance and E, before IPFO (``pairs``: the round's
+    :class:`RoundPairs`; ``state``: its IPFO state as ``_prepare`` returns it, not yet
+    alternated)."""
+    fits, pair_fit, n_pairs, count = pairs.fits, pairs.pair_fit, pairs.n_pairs, history.count
+    starting = False
+    for f in range(len(fits)):
+        starting = starting or count[fits[f]] == 0
+    if not starting:
+        return
+    points, _ = points_in_object(state.T, state.R, state.p, pair_fit, pairs.link,
+                                 pairs.points_link, pairs.normals_link)
+    targets, target_normals = pairs.targets, pairs.target_normals
+    distance = np.zeros(len(fits))
+    for k in range(len(pair_fit)):
+        distance[pair_fit[k]] += abs(plane_distance(points, k, targets, target_normals, k))
+    for f in range(len(fits)):
+        b = fits[f]
+        if count[b] != 0:
+            continue
+        history.level[b, 0], history.iteration[b, 0] = slots.level[b], 0
+        history.mean_distance[b, 0] = distance[f] / n_pairs[f]
+        history.error[b, 0], history.n_pairs[b, 0] = state.error[f], n_pairs[f]
+        history.q[b, 0], history.T[b, 0], history.eta[b, 0] = state.q[f], state.T[f], np.nan
+        history.n_ipfo[b, 0] = 0
+        count[b] = 1
 
 
 @kernel
@@ -557,6 +596,7 @@ def run(slots, history, grip, obj, fit_params, ipfo_params, max_rounds):
         if not running:
             return Round(IDLE, r, pairs, state, moments, request)
         pairs, state, moments = _prepare(slots, grip, obj, fit_params, ipfo_params, work)
+        record_start(slots, history, pairs, state)
         ended = 0
         if len(pairs.fits):
             request = alternate(state, moments, ipfo_params, 0, no_answer(state))

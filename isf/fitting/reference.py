@@ -25,7 +25,7 @@ from scipy.spatial import cKDTree
 from ..config import FitConfig
 from ..gripper.model import Gripper, LinkKinematics
 from ..object.surface import ObjectSurface
-from ..result import FitResult, FitStatus, IterationRecord
+from ..result import FitResult, FitStatus, History, IterationRecord
 from ..se3 import cross
 from .segments import Segments
 
@@ -119,20 +119,31 @@ def fit(gripper: Gripper, obj: ObjectSurface, T_object_gripper: np.ndarray,
                                started)
             matched = PairBatch(gripper, Segments.single(len(pairs.rows)), pairs.rows,
                                 obj.points[pairs.targets], obj.normals[pairs.targets])
+            if not records:  # iteration 0: the start pose and the pairs matched there
+                records.append(_record(matched, T, q, links, level, 0,
+                                       _error(matched, T, links, config.normal_weight),
+                                       np.nan, ()))
             T, q, links, error, errors = ipfo(matched, T, q, links, config)  # Line 10
             moved = _place(gripper, T, links, rows)[0]  # Lines 11-13: S^f, dF and d_0 follow
             it += 1
             e_s = np.linalg.norm(moved - start)  # Line 14: e_s = ||S^f - S^f_0||
             eta = 1.0 if e_s <= STILL else e_s / e_sp  # eta = e_s / e_s,p
-            distance = np.abs(matched.residuals(T[None], *_evaluate(matched, links)[:2])[0])
-            records.append(IterationRecord(
-                level=level, iteration=it, mean_distance=distance.sum() / len(distance),
-                error=error, n_pairs=len(distance), q=q, ipfo_errors=errors))
+            records.append(_record(matched, T, q, links, level, it, error, eta, errors))
             converged = 1.0 - eps <= eta <= 1.0 + eps
             if converged or it >= max_iterations:
                 break
         status = FitStatus.CONVERGED if converged else FitStatus.MAX_ITERATIONS
     return _result(gripper, obj, search, config, T, q, status, records, started)  # Line 17
+
+
+def _record(pairs: PairBatch, T: np.ndarray, q: np.ndarray, links: LinkKinematics, level: int,
+            iteration: int, error: float, eta: float, errors: tuple[float, ...]) -> IterationRecord:
+    """The :class:`IterationRecord` of the state ``T``, ``q`` (``links``) with ``pairs``."""
+    distance = np.abs(pairs.residuals(T[None], *_evaluate(pairs, links)[:2])[0])
+    return IterationRecord(level=level, iteration=iteration,
+                           mean_distance=distance.sum() / len(distance), error=error,
+                           n_pairs=len(distance), q=q, T_object_gripper=T,
+                           displacement_ratio=eta, ipfo_errors=errors)
 
 
 def ipfo(pairs: PairBatch, T: np.ndarray, q: np.ndarray, links: LinkKinematics,
@@ -396,8 +407,8 @@ def _result(gripper: Gripper, obj: ObjectSurface, search: cKDTree, config: FitCo
         normal_misalignment=float(np.arccos(np.clip(1.0 - c, -1.0, 1.0)).mean()) if K else np.inf,
         error=float(np.sum(d * d + config.normal_weight**2 * c * c)) if K else np.inf,
         n_pairs=K, contact_points=points[pairs.rows], object_points=targets,
-        surface_contact=surface_contact, iterations=len(records), status=status,
-        history=tuple(records),
+        surface_contact=surface_contact, iterations=max(0, len(records) - 1), status=status,
+        history=History.from_records(records, gripper.n_joints),
         time=time.perf_counter() - started)
 
 

@@ -127,6 +127,8 @@ class GripperReport:
         surfaces: the contact surfaces that could be sampled.
         palm_link: the link that approaches the object.
         approach: unit approach direction in the palm link frame, or None.
+        tcp_link: the link of the declared tool-centre point, or None.
+        T_link_tcp: the declared tool-centre point in ``tcp_link``'s frame, (4, 4), or None.
         problems: one message per problem; empty when the gripper loads.
         load_time: wall time of the check, seconds.
     """
@@ -141,6 +143,8 @@ class GripperReport:
     surfaces: tuple[SurfaceReport, ...] = ()
     palm_link: str | None = None
     approach: np.ndarray | None = None
+    tcp_link: str | None = None
+    T_link_tcp: np.ndarray | None = None
     problems: list[str] = field(default_factory=list)
     load_time: float = 0.0
 
@@ -262,6 +266,24 @@ def _joint_problems(joints: tuple[JointReport, ...]) -> list[str]:
     return problems
 
 
+def _tcp_problems(doc: TaggedURDF, tcp_link: str) -> list[str]:
+    """``<isf:gripper tcp_link>`` must name a link rigidly attached to the root link (only
+    fixed joints between them): a robot's tool-centre point does not move with the fingers."""
+    where = f"<isf:gripper tcp_link={tcp_link!r}>"
+    if tcp_link not in doc.links:
+        return [f"{where} names a link that does not exist; links: {', '.join(doc.links)}"]
+    parent_joint = {j.child: j for j in doc.joints.values()}
+    link, seen = tcp_link, set()
+    while link in parent_joint and link not in seen:
+        seen.add(link)
+        joint = parent_joint[link]
+        if joint.type != "fixed":
+            return [f"{where} moves with joint {joint.name!r}: name a link fixed to the root "
+                    f"link (e.g. {doc.root_link!r}) and give the point in its frame"]
+        link = joint.parent
+    return []
+
+
 def _initial_problems(doc: TaggedURDF, joints: tuple[JointReport, ...]) -> list[str]:
     problems = []
     by_name = {j.name: j for j in joints}
@@ -288,6 +310,12 @@ def _initial_problems(doc: TaggedURDF, joints: tuple[JointReport, ...]) -> list[
                 f"[{j.lower}, {j.upper}]: choose a value inside them"
             )
     return problems
+
+
+def _closing_problems(doc: TaggedURDF, joints: tuple[JointReport, ...]) -> list[str]:
+    actuated = [j.name for j in joints if j.actuated and j.mimic_leader is None]
+    return [f"<isf:closing joint={tag.joint!r}> names no actuated joint; actuated joints: "
+            f"{', '.join(actuated) or 'none'}" for tag in doc.closing if tag.joint not in actuated]
 
 
 # ---------------------------------------------------------------- meshes
@@ -436,9 +464,13 @@ def _load(
     joint_problems = _joint_problems(report.joints) + _axis_problems(doc)
     problems += joint_problems
     problems += _initial_problems(doc, report.joints)
+    problems += _closing_problems(doc, report.joints)
     tag = doc.gripper
     report.palm_link = (tag.palm_link if tag else None) or doc.root_link
     report.approach = tag.approach if tag else None
+    if tag and tag.tcp_link:
+        problems += _tcp_problems(doc, tag.tcp_link)
+        report.tcp_link, report.T_link_tcp = tag.tcp_link, tag.T_link_tcp
     if tag and tag.palm_link and tag.palm_link not in doc.links:
         problems.append(
             f"<isf:gripper palm_link={tag.palm_link!r}> names a link that does not exist; "
@@ -471,6 +503,11 @@ def _load(
             urdf_path=path,
             palm_link=report.palm_link,
             approach=report.approach,
+            tcp_link=tag.tcp_link if tag else None,
+            T_link_tcp=tag.T_link_tcp if tag else None,
+            mimic={j.name: j.mimic for j in doc.joints.values()
+                   if j.mimic is not None and j.type in _ACTUATED_TYPES},
+            closing={t.joint: t.sign for t in doc.closing},
         )
     report.load_time = time.perf_counter() - start
     log.debug("checked %s in %.1f ms: %d problems", path, 1e3 * report.load_time, len(problems))
@@ -538,6 +575,9 @@ def format_report(report: GripperReport) -> str:
             f"approach {approach}",
             f"links     {len(report.links)}: {', '.join(report.links)}",
         ]
+        if report.tcp_link is not None:
+            xyz = " ".join(f"{v:.4g}" for v in report.T_link_tcp[:3, 3])
+            lines.append(f"tcp       {xyz} m in {report.tcp_link}")
     if report.joints:
         n_act = sum(j.actuated for j in report.joints)
         n_mimic = sum(j.mimic_leader is not None for j in report.joints)

@@ -8,6 +8,10 @@ Frames
     returned here are expressed in it.
 ``<link>``
     Each URDF link's own frame; contact surfaces are stored in their link's frame.
+``tcp``
+    The tool-centre point a robot controller moves (:attr:`Gripper.T_root_tcp`): declared by
+    ``<isf:gripper tcp_link tcp_origin>``, else the centre of the contact surfaces at the
+    initial configuration with the root link's axes.
 
 Joint vector ``q``
     One value per *actuated* joint (mimic joints follow their leader and have
@@ -120,6 +124,17 @@ class Gripper:
         urdf_path: the file it was loaded from, if any.
         palm_link: link that approaches the object (``<isf:gripper palm_link>``).
         approach: unit approach direction in the palm link frame, or None.
+        tcp_link: the link the tool-centre point is declared in (``<isf:gripper tcp_link>``,
+            rigidly attached to the root link), or None when the URDF declares none (then
+            :attr:`T_root_tcp` is the default documented there).
+        T_link_tcp: the tool-centre-point frame in ``tcp_link``'s frame (``tcp_origin``),
+            (4, 4), or None.
+        mimic: the mimic joints, ``{follower: Mimic(leader, multiplier, offset)}`` (the
+            ``Mimic`` records the URDF reader makes), ``q_follower = multiplier * q_leader +
+            offset``.
+        closing: the sign (+1 or -1) of the motion of each actuated joint that closes its
+            finger (``<isf:closing joint sign>``), by joint name; joints not declared are
+            missing (:meth:`suggested_closing` derives them from the contact normals).
     """
 
     name: str
@@ -130,6 +145,10 @@ class Gripper:
     urdf_path: Path | None = None
     palm_link: str | None = None
     approach: np.ndarray | None = None
+    tcp_link: str | None = None
+    T_link_tcp: np.ndarray | None = None
+    mimic: dict = field(default_factory=dict)  # {follower name: Mimic}
+    closing: dict[str, float] = field(default_factory=dict)
     _local: threading.local = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -172,6 +191,83 @@ class Gripper:
         )
         self.point_rank = np.concatenate([np.arange(len(s.points)) for s in self.surfaces])
         self._points_of_link = [np.flatnonzero(self.point_link == k) for k in range(len(links))]
+
+    # ------------------------------------------------------------ robot frames
+    @property
+    def T_root_tcp(self) -> np.ndarray:
+        """Pose of the tool-centre-point frame ``tcp`` in the gripper (root link) frame, (4, 4).
+
+        Declared (``<isf:gripper tcp_link tcp_origin>``): ``T_root_link @ T_link_tcp`` with the
+        link's pose at :attr:`q_initial` (the link is rigidly attached to the root, so any
+        configuration gives the same). Not declared: the centre (mean) of the contact-surface
+        points at :attr:`q_initial`, with the root link's axes.
+        """
+        T = np.eye(4)
+        if self.tcp_link is None:
+            T[:3, 3] = self.contact_points(self.q_initial)[0].mean(axis=0)
+            return T
+        return self.link_poses(self.q_initial)[self.tcp_link] @ self.T_link_tcp
+
+    @property
+    def approach_root(self) -> np.ndarray:
+        """The unit approach direction in the gripper frame, shape (3,).
+
+        The declared ``approach`` turned from the palm link frame; without one, from the root
+        origin toward :attr:`T_root_tcp`'s origin (the root's +z when they coincide).
+        """
+        if self.approach is not None:
+            R = (np.eye(3) if self.palm_link is None
+                 else self.link_poses(self.q_initial)[self.palm_link][:3, :3])
+            return R @ np.asarray(self.approach, dtype=float)
+        p = self.T_root_tcp[:3, 3]
+        norm = float(np.linalg.norm(p))
+        return p / norm if norm > 1e-9 else np.array([0.0, 0.0, 1.0])
+
+    @property
+    def q_open(self) -> np.ndarray:
+        """The joint vector with the fingers opened, shape (n_joints,).
+
+        Each actuated joint at the limit (lower or upper) that spreads the contact-surface
+        points the most from their centre, the others at :attr:`q_initial`; a joint that does
+        not move them stays at its initial value.
+        """
+        q_open = self.q_initial.copy()
+
+        def spread(q: np.ndarray) -> float:
+            points = self.contact_points(q)[0]
+            return float(np.linalg.norm(points - points.mean(axis=0), axis=1).mean())
+
+        base = spread(self.q_initial)
+        for j in range(self.n_joints):
+            best, best_spread = self.q_initial[j], base
+            for limit in (self.lower[j], self.upper[j]):
+                q = self.q_initial.copy()
+                q[j] = limit
+                if (s := spread(q)) > best_spread + 1e-9:
+                    best, best_spread = limit, s
+            q_open[j] = best
+        return q_open
+
+    def suggested_closing(self, q: np.ndarray | None = None) -> dict[str, float]:
+        """The closing sign of each actuated joint that moves a contact surface, by name.
+
+        A finger closes along its contact surface's outward normal: the sign is that of
+        ``sum_i n_i . dp_i/dq_j`` over the contact points ``p_i`` (normals ``n_i``, gripper frame)
+        at ``q`` (default :attr:`q_initial`). Joints that move no contact point are left out.
+        """
+        kin = self.contact_kinematics(self.q_initial if q is None else np.asarray(q, dtype=float))
+        push = np.einsum("mk,mkj->j", kin.normals, kin.J_points)
+        scale = np.abs(kin.J_points).sum(axis=(0, 1))
+        return {name: float(np.sign(push[j])) for j, name in enumerate(self.joint_names)
+                if abs(push[j]) > 1e-6 * max(float(scale[j]), 1e-12)}
+
+    def joint_state(self, q: np.ndarray) -> dict[str, float]:
+        """Every moving joint's value by URDF name at ``q`` (n_joints,): the actuated joints
+        and their mimic followers (``multiplier * q_leader + offset``), metres or radians."""
+        values = self.joints(q)
+        values.update({name: m.multiplier * values[m.joint] + m.offset
+                       for name, m in self.mimic.items() if m.joint in values})
+        return values
 
     # ------------------------------------------------------------------ sizes
     @property

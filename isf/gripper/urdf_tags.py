@@ -27,6 +27,7 @@ from ..exceptions import URDFReadError
 __all__ = [
     "ISF_NS",
     "MAX_POINTS",
+    "ClosingTag",
     "ContactTag",
     "GeometryElement",
     "GripperTag",
@@ -55,10 +56,11 @@ _CONTACT_ATTRS = (
     "points",
     "flip",
 )
-_GRIPPER_ATTRS = ("palm_link", "approach")
+_GRIPPER_ATTRS = ("palm_link", "approach", "tcp_link", "tcp_origin")
 MAX_POINTS = 10_000
 """Largest ``points`` a contact tag may ask for (farthest-point ordering is O(points^2))."""
 _INITIAL_ATTRS = ("joint", "value")
+_CLOSING_ATTRS = ("joint", "sign")
 
 
 # ---------------------------------------------------------------- structures
@@ -154,10 +156,19 @@ class ContactTag:
 
 @dataclass(frozen=True, eq=False)
 class GripperTag:
-    """The ``<isf:gripper>`` tag; ``approach`` is a unit vector (3,) or None."""
+    """The ``<isf:gripper>`` tag; ``approach`` is a unit vector (3,) or None.
+
+    Attributes:
+        tcp_link: the link the tool-centre point is declared in (``tcp_link``), or None.
+        T_link_tcp: the pose of the tool-centre-point frame in ``tcp_link``'s frame, (4, 4),
+            from ``tcp_origin="x y z [roll pitch yaw]"`` (metres, radians, URDF's fixed-axis
+            roll-pitch-yaw); the identity when only ``tcp_link`` is given, None without it.
+    """
 
     palm_link: str | None = None
     approach: np.ndarray | None = None
+    tcp_link: str | None = None
+    T_link_tcp: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -166,6 +177,14 @@ class InitialTag:
 
     joint: str
     value: float
+
+
+@dataclass(frozen=True)
+class ClosingTag:
+    """An ``<isf:closing>`` tag: the sign (+1 or -1) of the joint's motion that closes its finger."""
+
+    joint: str
+    sign: float
 
 
 @dataclass(eq=False)
@@ -177,7 +196,7 @@ class TaggedURDF:
         links: links by name, file order.
         joints: joints by name, file order.
         root_link: the only link that is no joint's child, or None if not unique.
-        contacts, gripper, initial: the isf tags.
+        contacts, gripper, initial, closing: the isf tags.
         problems: one message per problem found while reading.
         root: the parsed ``<robot>`` element (every undeclared prefix declared).
     """
@@ -191,6 +210,7 @@ class TaggedURDF:
     initial: tuple[InitialTag, ...]
     problems: list[str]
     root: ET.Element | None = field(default=None, repr=False)
+    closing: tuple[ClosingTag, ...] = ()
 
 
 # ------------------------------------------------------------------ helpers
@@ -445,11 +465,37 @@ def _contact(rd: _Reader, elem: ET.Element, k: int) -> ContactTag | None:
     )
 
 
+def _tcp_origin(rd: _Reader, text: str | None) -> np.ndarray | None:
+    """``tcp_origin="x y z [roll pitch yaw]"`` as a pose (4, 4), or None (absent or wrong)."""
+    if text is None:
+        return None
+    n = len(text.split())
+    if n not in (3, 6):
+        rd.problems.append(f"<isf:gripper> tcp_origin={text!r} must be 'x y z' (metres) or "
+                           "'x y z roll pitch yaw' (radians)")
+        return None
+    values = rd.vector(text, "<isf:gripper> tcp_origin", n=n)
+    if values is None:
+        return None
+    T = np.eye(4)
+    T[:3, 3] = values[:3]
+    if n == 6:
+        T[:3, :3] = rpy_matrix(values[3:])
+    return T
+
+
 def _gripper(rd: _Reader, elem: ET.Element) -> GripperTag:
     _check_attrs(rd, elem, _GRIPPER_ATTRS, "<isf:gripper>")
+    tcp_link = elem.get("tcp_link") or None
+    T_link_tcp = _tcp_origin(rd, elem.get("tcp_origin"))
+    if tcp_link is None and elem.get("tcp_origin") is not None:
+        rd.problems.append("<isf:gripper> tcp_origin needs tcp_link, the link it is given in: "
+                           "add tcp_link=\"...\"")
     return GripperTag(
         palm_link=elem.get("palm_link") or None,
         approach=_unit(rd, elem.get("approach"), "<isf:gripper> approach"),
+        tcp_link=tcp_link,
+        T_link_tcp=None if tcp_link is None else np.eye(4) if T_link_tcp is None else T_link_tcp,
     )
 
 
@@ -463,16 +509,28 @@ def _initial(rd: _Reader, elem: ET.Element) -> InitialTag | None:
     return None if not joint or value is None else InitialTag(joint, value)
 
 
+def _closing(rd: _Reader, elem: ET.Element) -> ClosingTag | None:
+    joint = elem.get("joint") or ""
+    where = f"<isf:closing joint={joint!r}>"
+    _check_attrs(rd, elem, _CLOSING_ATTRS, where)
+    sign = rd.number(elem.get("sign"), f"{where} sign")
+    if not joint or sign not in (1.0, -1.0):
+        rd.problems.append(f"{where} needs a joint and a sign attribute of 1 or -1")
+        return None
+    return ClosingTag(joint, sign)
+
+
 def _read_isf(rd: _Reader, root: ET.Element, isf_uris: set[str]):
-    contacts, initial, grippers = [], [], []
+    contacts, initial, grippers, closing = [], [], [], []
     top = set(map(id, root))
     for elem in root.iter():
         uri, _, local = elem.tag[1:].partition("}") if elem.tag.startswith("{") else ("", "", "")
         if uri not in isf_uris:
             continue
-        if local not in ("contact", "gripper", "initial"):
+        if local not in ("contact", "gripper", "initial", "closing"):
             rd.problems.append(
-                f"unknown element isf:{local}; known: isf:contact, isf:gripper, isf:initial"
+                f"unknown element isf:{local}; known: isf:contact, isf:gripper, isf:initial, "
+                "isf:closing"
             )
             continue
         if id(elem) not in top:
@@ -481,6 +539,8 @@ def _read_isf(rd: _Reader, root: ET.Element, isf_uris: set[str]):
             contacts.append(_contact(rd, elem, len(contacts)))
         elif local == "gripper":
             grippers.append(_gripper(rd, elem))
+        elif local == "closing":
+            closing.append(_closing(rd, elem))
         else:
             initial.append(_initial(rd, elem))
     contacts = [c for c in contacts if c is not None]
@@ -495,7 +555,11 @@ def _read_isf(rd: _Reader, root: ET.Element, isf_uris: set[str]):
         rd.problems.append(f"joint {dup!r} has more than one <isf:initial>: keep one")
     if len(grippers) > 1:
         rd.problems.append("more than one <isf:gripper> tag: keep one")
-    return tuple(contacts), (grippers[0] if grippers else None), tuple(initial)
+    closing = [t for t in closing if t is not None]
+    joints = [t.joint for t in closing]
+    for dup in sorted({j for j in joints if joints.count(j) > 1}):
+        rd.problems.append(f"joint {dup!r} has more than one <isf:closing>: keep one")
+    return tuple(contacts), (grippers[0] if grippers else None), tuple(initial), tuple(closing)
 
 
 # ---------------------------------------------------------------------- API
@@ -625,7 +689,7 @@ def parse_tagged_urdf(text: str) -> TaggedURDF:
             "the URDF must have exactly one root link (a link that is no joint's child); "
             f"found {roots}"
         )
-    contacts, gripper, initial = _read_isf(rd, root, isf_uris)
+    contacts, gripper, initial, closing = _read_isf(rd, root, isf_uris)
     return TaggedURDF(
         robot_name=root.get("name", ""),
         links=links,
@@ -636,4 +700,5 @@ def parse_tagged_urdf(text: str) -> TaggedURDF:
         initial=initial,
         problems=rd.problems,
         root=root,
+        closing=closing,
     )

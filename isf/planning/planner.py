@@ -39,7 +39,13 @@ surfaces, and the links behind them can end inside the object.
 Ranking: collision-free grasps first, then grasps whose every contact surface
 touches the object, then (on a scene) grasps that rest on one piece of the scene's surface
 rather than on several (:mod:`isf.scene.segments`), then by mean point-to-plane distance
-(lower first).
+(lower first): the paper's ranking, ``rank="fit"``. By default (``rank="quality"``) the valid
+grasps are ranked by what their contacts resist instead (:mod:`isf.quality`:
+:func:`isf.quality.grasp_quality.quality_rank_key`: holding their weight in every gravity direction first, then
+the Ferrari-Canny epsilon, then the fitting error), ahead of the others in the order above.
+After the ranking, distinct grasps come first: a grasp within 1 cm and 30 degrees
+(about the TCP, under the gripper's symmetry) of a better one is marked ``duplicate_of`` and
+ranked after the distinct ones (:mod:`isf.planning.diversity`).
 
 Scenes: :func:`plan` takes an :class:`isf.scene.Scene` (what depth cameras saw) wherever it
 takes an object. ISF fits the scene's observed surface, unsegmented; the collision checks add
@@ -51,7 +57,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -61,12 +67,20 @@ from ..config import FitConfig
 from ..fitting.engine import LockstepFitter
 from ..gripper.model import Gripper
 from ..object.surface import ObjectSurface
+from ..quality.grasp_quality import (
+    GraspQuality,
+    QualityConfig,
+    grasp_quality,
+    object_properties,
+    quality_rank_key,
+)
 from ..repair.clearance import RepairConfig
-from ..result import FitResult
+from ..result import FitResult, FitStatus
 from ..samplers import Outcome, Proposal, Sampler, get_sampler
 from ..scene.loading import Scene
 from ._evaluation import LockstepEvaluations, SampleJudge, SampleWorker, ThreadedEvaluations
 from ._working_surface import resolve_spacing, working_surface
+from .diversity import DEFAULT_DIVERSITY, Diversity, distinct_first, symmetry_rotations
 from .span import warn_if_outside_span
 
 __all__ = ["Grasp", "PlanResult", "PlanStats", "plan"]
@@ -100,6 +114,10 @@ class Grasp:
             (:func:`isf.repair.clearance.repair_penetration`): then ``fit`` is the repaired
             grasp, whose ``history`` is the ISF fit's and ends before the repair moved it (the
             last record's joints are not the grasp's).
+        duplicate_of: the rank (from 1) of the better grasp this one repeats (within the
+            run's :class:`isf.planning.diversity.Diversity`), or None for a distinct grasp.
+        quality: what its contacts resist (:func:`isf.quality.grasp_quality.grasp_quality`), computed for
+            the valid grasps of a plan ranked by quality; None otherwise.
     """
 
     fit: FitResult
@@ -108,6 +126,8 @@ class Grasp:
     sample_index: int
     pieces: int | None = None
     repaired: bool = False
+    duplicate_of: int | None = None
+    quality: GraspQuality | None = None
 
     @property
     def T_object_gripper(self) -> np.ndarray:
@@ -135,17 +155,28 @@ class Grasp:
         return self.pieces is None or self.pieces <= 1
 
     @property
+    def in_contact(self) -> bool:
+        """Every contact surface touches the object at the end of a fit that kept its contacts
+        (a fit that lost them, :attr:`FitStatus.LOST_CONTACT`, has no fitting error and is no
+        grasp, whatever its last pose grazes)."""
+        return self.fit.status is not FitStatus.LOST_CONTACT and self.fit.all_surfaces_in_contact
+
+    @property
     def valid(self) -> bool:
-        """Collision-free, every contact surface touches the object, and (on a scene) all rest
-        on one piece of its surface."""
-        return (self.collision.collision_free and self.fit.all_surfaces_in_contact
-                and self.one_piece)
+        """Collision-free, :attr:`in_contact`, and (on a scene) resting on one piece of its
+        surface."""
+        return self.collision.collision_free and self.in_contact and self.one_piece
 
     def sort_key(self) -> tuple:
-        """Ranking key: collision-free, then all surfaces touching, then one piece, then mean
+        """Ranking key: collision-free, then :attr:`in_contact`, then one piece, then mean
+        distance; for a grasp with a :attr:`quality` record (a plan ranked by quality),
+        :func:`isf.quality.grasp_quality.quality_rank_key` (quality, then mean distance) instead of the mean
         distance."""
-        return (not self.collision_free, not self.fit.all_surfaces_in_contact,
-                not self.one_piece, self.fit.mean_distance, self.sample_index)
+        if self.quality is None:
+            return (not self.collision_free, not self.in_contact, not self.one_piece,
+                    self.fit.mean_distance, self.sample_index)
+        return (not self.collision_free, not self.in_contact, not self.one_piece,
+                *quality_rank_key(self.quality, self.fit.mean_distance), self.sample_index)
 
 
 @dataclass(frozen=True)
@@ -167,6 +198,8 @@ class PlanStats:
         surface_points: object points the run matched against (see ``working_spacing`` of
             :func:`plan`); 0 when not recorded.
         workers: threads that evaluated samples (see :func:`plan`).
+        quality_time: time spent computing the valid grasps' quality for the ranking, seconds
+            (part of ``total_time``; 0 with ``rank="fit"``).
     """
 
     samples: int
@@ -180,6 +213,7 @@ class PlanStats:
     batch_size: int = 1
     surface_points: int = 0
     workers: int = 1
+    quality_time: float = 0.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -197,6 +231,12 @@ class PlanResult:
         repair: the collision repair's parameters; None when the run did not repair.
         scene: the :class:`isf.scene.Scene` planned on (its frame is the object frame of the
             grasps), or None for an object.
+        diversity: how duplicates were told apart, its ``symmetry`` the order used (detected
+            or declared); None when the run kept the plain ranking.
+        gripper_model: the :class:`Gripper` planned with (its TCP, joints, URDF file).
+        rank: how the grasps were ranked: ``"quality"`` or ``"fit"`` (see :func:`plan`).
+        quality: the :class:`isf.quality.grasp_quality.QualityConfig` of the quality ranking; None with
+            ``rank="fit"``.
     """
 
     grasps: tuple[Grasp, ...]
@@ -208,6 +248,10 @@ class PlanResult:
     config: FitConfig = field(default_factory=FitConfig)
     repair: RepairConfig | None = None
     scene: Scene | None = None
+    diversity: Diversity | None = None
+    gripper_model: Gripper | None = None
+    rank: str = "fit"
+    quality: QualityConfig | None = None
 
     @property
     def best(self) -> Grasp | None:
@@ -217,6 +261,42 @@ class PlanResult:
     def collision_free_grasps(self) -> list[Grasp]:
         """The collision-free grasps, ranked."""
         return [g for g in self.grasps if g.collision_free]
+
+
+def _distinct_first(grasps: list[Grasp], gripper: Gripper, diversity: Diversity) -> list[Grasp]:
+    """The ranked ``grasps`` with the distinct ones first and the others marked
+    ``duplicate_of`` (:func:`isf.planning.diversity.distinct_first`)."""
+    if not grasps:
+        return grasps
+    T_object_tcp = np.array([g.T_object_gripper for g in grasps]) @ gripper.T_root_tcp
+    tiers = np.array([0 if g.valid else 1 if g.collision_free else 2 for g in grasps])
+    order, duplicate_of = distinct_first(
+        T_object_tcp, symmetry_rotations(gripper, int(diversity.symmetry)), diversity.distance,
+        diversity.angle, tiers)
+    return [replace(grasps[i], duplicate_of=int(d) if d else None)
+            for i, d in zip(order, duplicate_of)]
+
+
+def _check_ranking(rank, quality) -> None:
+    """Raise InvalidInputError for a ``rank`` or ``quality`` argument of :func:`plan` it
+    rejects."""
+    from ..exceptions import InvalidInputError
+
+    if rank not in ("quality", "fit"):
+        raise InvalidInputError(f"rank must be 'quality' or 'fit', got {rank!r}")
+    if quality is not None and not isinstance(quality, QualityConfig):
+        raise InvalidInputError(f"quality must be an isf.quality.QualityConfig or None, got "
+                                f"{type(quality).__name__}")
+
+
+def _with_quality(grasps: list[Grasp], gripper: Gripper, obj: ObjectSurface,
+                  config: QualityConfig) -> list[Grasp]:
+    """``grasps`` with the :attr:`Grasp.quality` of each valid one (the others keep None)."""
+    if not any(g.valid for g in grasps):
+        return grasps
+    properties = object_properties(obj)
+    return [replace(g, quality=grasp_quality(gripper, obj, g.T_object_gripper, g.q, config,
+                                             properties)) if g.valid else g for g in grasps]
 
 
 def _slots(sampler: Sampler, batch_size: int) -> int:
@@ -264,6 +344,9 @@ def plan(
     repair_collisions: bool | RepairConfig = True,
     working_spacing: float | str | None = "auto",
     progress: Callable[[int, int, Grasp], None] | None = None,
+    diversity: Diversity | None = DEFAULT_DIVERSITY,
+    rank: str = "quality",
+    quality: QualityConfig | None = None,
 ) -> PlanResult:
     """Plan grasps of an object with a gripper (Algorithm 3): propose, fit, check, observe.
 
@@ -295,6 +378,15 @@ def plan(
             :class:`isf.RepairConfig` repairs with those parameters (True: the defaults,
             measured against other settings in docs/hands.md).
         progress: called after each sample as ``progress(done, total, grasp)``.
+        diversity: after the ranking, grasps within this distance of a better one are marked
+            ``duplicate_of`` and ranked after the distinct ones
+            (:mod:`isf.planning.diversity`; default 1 cm and 30 degrees about the TCP, the
+            symmetry detected); None keeps the plain ranking.
+        rank: ``"quality"`` (default) ranks the valid grasps by what their contacts resist
+            (:mod:`isf.quality`, computed for the valid grasps only); ``"fit"`` is the paper's
+            ranking by fitting error (see the module docstring).
+        quality: the contact model and metric parameters of ``rank="quality"`` (friction 0.5
+            by default; its ``contact_distance`` is ``config.contact_distance``).
 
     Returns:
         the ranked :class:`PlanResult`.
@@ -313,6 +405,12 @@ def plan(
 
     started = time.perf_counter()
     _check_arguments(samples, batch_size, workers, repair_collisions, seed, config)
+    if diversity is not None and not isinstance(diversity, Diversity):
+        from ..exceptions import InvalidInputError
+
+        raise InvalidInputError(f"diversity must be an isf.planning.diversity.Diversity or None, "
+                                f"got {type(diversity).__name__}")
+    _check_ranking(rank, quality)
     config = FitConfig() if config is None else config
     gripper = gripper if isinstance(gripper, Gripper) else load_gripper(gripper)
     scene = obj if isinstance(obj, Scene) else None
@@ -339,7 +437,7 @@ def plan(
         grasps.append(grasp)
         if progress is not None:
             progress(len(grasps), samples, grasp)
-        touching = result.all_surfaces_in_contact and grasp.one_piece
+        touching = grasp.in_contact and grasp.one_piece
         error = result.mean_distance if touching else NO_CONTACT_ERROR
         return Outcome(proposal, error=error, collision_free=report.collision_free)
 
@@ -367,7 +465,20 @@ def plan(
     fit_time = evaluations.fit_time + sum(j.fit_time for j in judges)
     collision_time = sum(j.collision_time for j in judges)
 
+    quality_time = 0.0
+    if rank == "quality":
+        quality_started = time.perf_counter()
+        base = QualityConfig() if quality is None else quality
+        quality = replace(base, contact_model=replace(base.contact_model,
+                                                      contact_distance=config.contact_distance))
+        grasps = _with_quality(grasps, gripper, obj, quality)
+        quality_time = time.perf_counter() - quality_started
+    else:
+        quality = None
     grasps.sort(key=Grasp.sort_key)
+    if diversity is not None:  # after the ranking: distinct grasps first
+        diversity = replace(diversity, symmetry=diversity.order(gripper))
+        grasps = _distinct_first(grasps, gripper, diversity)
     total = time.perf_counter() - started
     n_free = sum(g.collision_free for g in grasps)
     stats = PlanStats(
@@ -375,8 +486,10 @@ def plan(
         total_time=total, time_per_collision_free=total / n_free if n_free else float("inf"),
         fit_time=fit_time, collision_time=collision_time, setup_time=setup_time,
         batch_size=int(batch_size), surface_points=obj.n_points, workers=int(workers),
+        quality_time=quality_time,
     )
     repairer = judges[0].repairer  # the parameters the run repaired with, as the judges took them
     return PlanResult(tuple(grasps), stats, gripper.name, obj.name, sampler.name, seed, config,
-                      None if repairer is None else repairer.config, scene)
+                      None if repairer is None else repairer.config, scene, diversity, gripper,
+                      rank, quality)
 

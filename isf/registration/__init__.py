@@ -9,17 +9,26 @@ writes the copy (:func:`tag_urdf`) and ``preview`` describes the result (:class:
 from ..exceptions import RegistrationError
 from .preview import EXPORT_FORMATS, SurfacePreview, TagPreview, check_export_path
 from .spec import ContactSpec
-from .suggestion import suggest_approach, suggest_contacts
+from .suggestion import (
+    SuggestedTCP,
+    suggest_approach,
+    suggest_closing,
+    suggest_contacts,
+    suggest_tcp,
+)
 from .urdf_editing import tag_urdf
 
 __all__ = [
     "ContactSpec",
     "EXPORT_FORMATS",
     "RegistrationError",
+    "SuggestedTCP",
     "SurfacePreview",
     "TagPreview",
     "check_export_path",
     "suggest_approach",
+    "suggest_closing",
     "suggest_contacts",
+    "suggest_tcp",
     "tag_urdf",
 ]

@@ -4,6 +4,7 @@ for the copy (text summary and export of the selected faces)."""
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -13,16 +14,19 @@ import trimesh
 from ..exceptions import (
     GeometryLoadError,
     MeshNotFoundError,
+    ModelBuildError,
     OutputFileError,
     SurfaceSelectionError,
 )
-from ..gripper.loading import GripperReport, format_report, load_gripper
+from ..gripper.loading import GripperReport, format_report, inspect_gripper, load_gripper
+from ..gripper.mesh_paths import PackageDirs
 from ..gripper.surface_sampling import load_geometry, select_faces, tag_elements
-from ..gripper.urdf_tags import ContactTag, TaggedURDF
+from ..gripper.urdf_tags import ContactTag, TaggedURDF, parse_tagged_urdf
 from ..output_files import check_output_path, write_atomically
-from ._urdf_source import Posed, face_normals
+from ._urdf_source import Posed, face_normals, pose_urdf, read_urdf
 
-__all__ = ["EXPORT_FORMATS", "SurfacePreview", "TagPreview", "check_export_path", "preview_surface"]
+__all__ = ["EXPORT_FORMATS", "SurfacePreview", "TagPreview", "check_export_path", "preview_surface",
+           "preview_tagged"]
 
 EXPORT_FORMATS = ("glb", "obj", "ply")
 """File suffixes :meth:`TagPreview.export` writes (formats that keep face colours)."""
@@ -202,6 +206,36 @@ def _dir(v: np.ndarray | None) -> str:
     return "-" if v is None else "(" + " ".join(f"{x:+.3f}" for x in v) + ")"
 
 
+def preview_tagged(urdf_path: str | Path, *, package_dirs: PackageDirs | None = None,
+                   report: GripperReport | None = None) -> TagPreview:
+    """What the tags of an existing tagged URDF select, as :func:`isf.registration.tag_urdf`
+    describes the copy it writes (``isf inspect --export``); nothing is written.
+
+    Args:
+        urdf_path: the tagged URDF.
+        package_dirs: optional ``{package: folder}`` map for ``package://`` mesh paths.
+        report: its :func:`isf.inspect_gripper` report when already made.
+
+    Raises:
+        RegistrationError: the file is not readable UTF-8 text.
+    """
+    t0 = time.perf_counter()
+    path, text = read_urdf(urdf_path)
+    report = inspect_gripper(path, package_dirs=package_dirs) if report is None else report
+    doc = parse_tagged_urdf(text)
+    try:
+        posed = pose_urdf(text, doc, ())
+    except ModelBuildError:
+        posed = None  # the report says why
+    cache: dict = {}
+    surfaces = tuple(preview_surface(tag, doc, path.parent, posed, report.problems, cache,
+                                     package_dirs) for tag in doc.contacts)
+    return TagPreview(source_path=path, urdf_path=path, surfaces=surfaces, report=report,
+                      rewritten_meshes={}, namespace_added=False,
+                      q_initial={} if posed is None else posed.joint_values(), tag_time=0.0,
+                      validation_time=time.perf_counter() - t0)
+
+
 def preview_surface(
     tag: ContactTag,
     doc: TaggedURDF,
@@ -209,6 +243,7 @@ def preview_surface(
     posed: Posed | None,
     report_problems: list[str],
     cache: dict,
+    package_dirs: PackageDirs | None = None,
 ) -> SurfacePreview:
     """What one contact tag selects in the tagged copy.
 
@@ -219,6 +254,7 @@ def preview_surface(
         posed: the copy's model at its initial configuration, or None when it does not build.
         report_problems: the validation's problems; those naming this contact are kept.
         cache: ``{file: (vertices, faces)}`` shared between the contacts.
+        package_dirs: optional ``{package: folder}`` map for ``package://`` mesh paths.
     """
     problems = [p for p in report_problems if p.startswith(f"contact {tag.name!r}")]
     base = SurfacePreview(tag.name, tag.link, tag.source, problems=tuple(problems))
@@ -227,7 +263,7 @@ def preview_surface(
         return base  # the report names the missing link
     try:
         elements = tag_elements(tag, link)
-        meshes = [load_geometry(e, urdf_dir, None, cache) for e in elements]
+        meshes = [load_geometry(e, urdf_dir, package_dirs, cache) for e in elements]
         selection = select_faces(tag, meshes)
     except (SurfaceSelectionError, GeometryLoadError, MeshNotFoundError) as exc:
         if str(exc) not in problems:

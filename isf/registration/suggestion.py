@@ -3,8 +3,8 @@
 
 :func:`suggest_contacts` proposes one contact per fingertip: the leaf links of the kinematic tree
 below a movable joint, each with the face normal that faces the other fingertips at the initial
-configuration. Its heuristics are documented on the function; the result is a list of ordinary
-:class:`ContactSpec` values to accept or edit.
+configuration, on faces that nothing covers. Its heuristics are documented on the function;
+the result is a list of ordinary :class:`ContactSpec` values to accept or edit.
 """
 
 from __future__ import annotations
@@ -14,6 +14,7 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import pinocchio as pin
@@ -32,9 +33,10 @@ from ._urdf_source import (
     pose_urdf,
     read_urdf,
 )
+from .occlusion import blocked
 from .spec import ContactSpec
 
-__all__ = ["suggest_approach", "suggest_contacts"]
+__all__ = ["SuggestedTCP", "suggest_approach", "suggest_closing", "suggest_contacts", "suggest_tcp"]
 
 log = logging.getLogger(__name__)
 
@@ -54,14 +56,20 @@ _TIP_ANGLE = 0.5
 # a pad is cut along a link axis only if that axis is this close to the approach, radians
 _DISTAL_AXIS_ANGLE = 0.35
 _BOX_MARGIN = 0.01  # metres added around the link geometry on the box's free axes
+# a face counts as covered when this share of its test points has geometry in front of it
+_COVERED_SHARE = 0.5
+# faces of a pad lying this much behind its frontmost face (along the normal) cannot touch
+_BEHIND = 1e-3
 
 
 @dataclass(frozen=True, eq=False)
 class _Fingertip:
     link: str
     source: str
-    meshes: tuple[trimesh.Trimesh, ...]  # link frame
+    meshes: tuple[trimesh.Trimesh, ...]  # link frame, one per geometry element
+    elements: tuple[str, ...]  # the elements' names
     centroid: np.ndarray  # gripper frame, (3,)
+    neighbours: tuple[trimesh.Trimesh, ...]  # link frame: geometry of the adjacent links
 
 
 def _movable_depth(doc: TaggedURDF) -> dict[str, int]:
@@ -128,11 +136,10 @@ def _fingertips(
     for name in _fingertip_candidates(doc, links):
         link = doc.links[name]
         source = "collision" if link.collisions else "visual"
+        elements = link.collisions or link.visuals
         try:
-            meshes = tuple(
-                load_geometry(e, src.parent, package_dirs, cache)
-                for e in (link.collisions or link.visuals)
-            )
+            meshes = tuple(load_geometry(e, src.parent, package_dirs, cache) for e in elements)
+            neighbours = _neighbour_geometry(doc, posed, name, src.parent, package_dirs, cache)
         except (GeometryLoadError, MeshNotFoundError) as exc:
             raise RegistrationError(f"link {name!r}: {exc}", source=src) from exc
         if not meshes:
@@ -142,7 +149,8 @@ def _fingertips(
             )
         T = posed.poses[name]
         centroid = T[:3, :3] @ _surface_centroid(meshes) + T[:3, 3]
-        tips.append(_Fingertip(name, source, meshes, centroid))
+        tips.append(_Fingertip(name, source, meshes, tuple(e.name for e in elements), centroid,
+                               neighbours))
     if links is None:
         tips = _drop_side_links(tips, _movable_depth(doc))
     if len(tips) < 2:
@@ -153,6 +161,39 @@ def _fingertips(
             source=src,
         )
     return posed, tips
+
+
+def _neighbour_geometry(doc: TaggedURDF, posed: Posed, name: str, folder: Path,
+                        package_dirs: PackageDirs | None,
+                        cache: dict) -> tuple[trimesh.Trimesh, ...]:
+    """The geometry of the links joined to link ``name`` (its parent and children), at the
+    initial configuration, in ``name``'s frame (collision geometry, else visual)."""
+    adjacent = [j.parent for j in doc.joints.values() if j.child == name]
+    adjacent += [j.child for j in doc.joints.values() if j.parent == name]
+    T_link_root = np.linalg.inv(posed.poses[name])
+    out = []
+    for other in dict.fromkeys(adjacent):
+        if other not in doc.links or other not in posed.poses:
+            continue
+        T = T_link_root @ posed.poses[other]
+        for element in doc.links[other].collisions or doc.links[other].visuals:
+            mesh = load_geometry(element, folder, package_dirs, cache)
+            out.append(trimesh.Trimesh(np.asarray(mesh.vertices) @ T[:3, :3].T + T[:3, 3],
+                                       mesh.faces, process=False))
+    return tuple(out)
+
+
+def _covered(tris: np.ndarray, normals: np.ndarray, own: trimesh.Trimesh,
+             obstacles: Sequence[trimesh.Trimesh]) -> np.ndarray:
+    """Which faces (F, 3, 3) of the mesh ``own`` with unit ``normals`` (F, 3) have geometry in
+    front of most of their test points (the centroid and a point between it and each corner),
+    (F,) bool: ``own`` or ``obstacles`` in front, or inside one of ``obstacles``
+    (:func:`isf.registration.occlusion.blocked`)."""
+    centroid = tris.mean(axis=1)
+    points = np.concatenate([centroid[:, None], 0.5 * (tris + centroid[:, None])], axis=1)
+    points, normals = points.reshape(-1, 3), np.repeat(normals, 4, axis=0)
+    hits = blocked(points, normals, [own], enclosing=False) | blocked(points, normals, obstacles)
+    return hits.reshape(-1, 4).mean(axis=1) >= _COVERED_SHARE
 
 
 def _drop_side_links(tips: list[_Fingertip], depth: dict[str, int]) -> list[_Fingertip]:
@@ -173,21 +214,48 @@ def _drop_side_links(tips: list[_Fingertip], depth: dict[str, int]) -> list[_Fin
     return keep
 
 
-def _facing_normal(
-    meshes: Sequence[trimesh.Trimesh], direction: np.ndarray
-) -> tuple[np.ndarray, bool]:
-    """The face normal of ``meshes`` (link frame) that faces ``direction``, and whether it
-    belongs to a flat pad.
+class _Facing(NamedTuple):
+    """What :func:`_facing_normal` found.
 
-    Faces within ``_SEARCH_ANGLE`` of ``direction`` are considered; the largest cluster of
-    nearly parallel normals (a flat pad) gives the answer when it holds at least half their
-    area. Otherwise (a rounded tip) ``direction`` itself is returned.
+    Attributes:
+        normal: the contact normal, link frame, (3,).
+        flat: whether it is a flat pad's.
+        pad: the pad's faces (those that can touch: free in front and frontmost), (F,) bool
+            over the meshes' faces in order; none for a rounded tip.
+    """
+
+    normal: np.ndarray
+    flat: bool
+    pad: np.ndarray
+
+
+def _facing_normal(
+    meshes: Sequence[trimesh.Trimesh], direction: np.ndarray,
+    neighbours: Sequence[trimesh.Trimesh] = ()
+) -> _Facing:
+    """The face normal of ``meshes`` (a link's elements, link frame) that faces ``direction``,
+    and whether it belongs to a flat pad.
+
+    Faces within ``_SEARCH_ANGLE`` of ``direction`` are considered, except those covered by
+    geometry in front of them (the link's elements and ``neighbours``, the adjacent links'
+    geometry in the link frame: :func:`_covered`); the largest cluster of nearly parallel normals (a flat pad)
+    gives the answer when it holds at least half their area, and the pad is that cluster's
+    faces lying within 1 mm of its frontmost one along the normal (a face further back cannot
+    touch a flat object before the one in front). Otherwise (a rounded tip) ``direction``
+    itself is returned.
     """
     tris = np.concatenate([np.asarray(m.triangles) for m in meshes])
+    element = np.repeat(np.arange(len(meshes)), [len(m.faces) for m in meshes])
     normals, areas = face_normals(tris), face_areas(tris)
     near = (normals @ direction >= math.cos(_SEARCH_ANGLE)) & (areas > 0)
+    for k, mesh in enumerate(meshes):
+        candidates = np.flatnonzero(near & (element == k))
+        others = [m for j, m in enumerate(meshes) if j != k] + list(neighbours)
+        if len(candidates):
+            near[candidates[_covered(tris[candidates], normals[candidates], mesh, others)]] = False
+    none = np.zeros(len(tris), bool)
     if not near.any():
-        return direction, False
+        return _Facing(direction, False, none)
     n, a = normals[near], areas[near]
     seeds = np.arange(len(n))
     if len(seeds) > _MAX_CLUSTER_SEEDS:
@@ -196,9 +264,14 @@ def _facing_normal(
     best = seeds[int(np.argmax(support))]
     members = n @ n[best] >= math.cos(_CLUSTER_ANGLE)
     if a[members].sum() < _FLAT_SHARE * a.sum():
-        return direction, False
+        return _Facing(direction, False, none)
     mean = a[members] @ n[members]
-    return mean / np.linalg.norm(mean), True
+    normal = mean / np.linalg.norm(mean)
+    pad = np.flatnonzero(near)[members]
+    height = tris[pad].mean(axis=1) @ normal
+    out = none.copy()
+    out[pad[height >= height.max() - _BEHIND]] = True
+    return _Facing(normal, True, out)
 
 
 def _closing_direction(posed: Posed, link: str, toward: np.ndarray) -> np.ndarray:
@@ -297,6 +370,16 @@ def suggest_contacts(
     ``max_angle`` is 0.3 rad for a flat pad (its faces only) and 0.5 rad for a rounded tip
     (a cap of it). Collision geometry is used when the link has any, else visual geometry.
 
+    Faces that cannot touch are never chosen: every geometry element of the link is
+    considered, and a face with geometry within 5 mm in front of most of its test points
+    (another element of the link, an element of a link joined to it, or its own mesh) or
+    inside a closed element is left out (:mod:`isf.registration.occlusion`); of a flat pad,
+    only the faces within 1 mm of its frontmost one along the normal count (a body face behind
+    a fingertip pad meets a flat object after the pad). When the link has several elements and
+    those faces belong to one of them, the contact names it (``geometry``), so the faces of the
+    other elements are not sampled, and the ``tip_fraction`` cut below applies to that
+    element.
+
     Fingertip part of a flat pad: ISF pulls a contact surface onto the object as a whole, so a
     pad as long as the finger (Franka hand) puts the palm into any object longer than the pad.
     A flat pad is therefore cut to the ``tip_fraction`` of its length at its distal end (along
@@ -338,20 +421,25 @@ def suggest_contacts(
                 "configuration, so it faces no direction: pass initial={...} with the gripper open"
             )
         R = posed.poses[t.link][:3, :3]
-        normal, flat = _facing_normal(t.meshes, R.T @ toward / dist)
+        element = np.repeat(np.arange(len(t.meshes)), [len(m.faces) for m in t.meshes])
+        normal, flat, pad = _facing_normal(t.meshes, R.T @ toward / dist, t.neighbours)
         if not flat:  # a rounded tip: face the side the finger closes towards
             normal = R.T @ _closing_direction(posed, t.link, toward / dist)
         auto_angle = _PAD_ANGLE if flat else _TIP_ANGLE
+        holding = np.unique(element[pad])  # the elements holding the pad
+        geometry = t.elements[holding[0]] if len(t.meshes) > 1 and len(holding) == 1 else None
         spec = ContactSpec(
             name=_surface_name(t.link),
             link=t.link,
+            geometry=geometry,
             source=t.source,
             normal=tuple(np.round(normal, 4)),
             max_angle=auto_angle if max_angle is None else max_angle,
             points=points,
         )
         if flat and tip_fraction < 1.0 and np.linalg.norm(center) > 1e-6:
-            spec = _distal_box(spec, t.meshes, R.T @ reach, tip_fraction)
+            kept = t.meshes if geometry is None else (t.meshes[holding[0]],)
+            spec = _distal_box(spec, kept, R.T @ reach, tip_fraction)
         out.append(spec)
     return out
 
@@ -393,3 +481,70 @@ def suggest_approach(
             f"the fingertips surround the origin of {palm!r}: give approach=... yourself"
         )
     return tuple(float(x) for x in v / norm)
+
+
+@dataclass(frozen=True)
+class SuggestedTCP:
+    """A proposed ``<isf:gripper tcp_link tcp_origin>``.
+
+    Attributes:
+        link: the link the point is given in (the palm link).
+        origin: the point in that link's frame, metres, (x, y, z); the TCP's axes are the link's.
+    """
+
+    link: str
+    origin: tuple[float, float, float]
+
+
+def suggest_closing(tagged_urdf: str | Path, *, package_dirs: PackageDirs | None = None
+                    ) -> dict[str, float]:
+    """Propose each actuated joint's closing sign (``<isf:closing>``) from the contact normals.
+
+    A finger closes along its contact surface's outward normal: the sign of a joint is that of
+    the contact points' motion along their normals per unit of the joint
+    (:meth:`isf.Gripper.suggested_closing`, at the initial configuration).
+
+    Args:
+        tagged_urdf: a URDF with its ``<isf:contact>`` tags (e.g. written by :func:`tag_urdf`).
+        package_dirs: optional ``{package: folder}`` map for ``package://`` mesh paths.
+
+    Returns:
+        ``{joint: +1.0 or -1.0}`` for every actuated joint that moves a contact surface.
+
+    Raises:
+        GripperDescriptionError: the tagged URDF does not load.
+    """
+    from ..gripper.loading import load_gripper
+
+    return load_gripper(tagged_urdf, package_dirs=package_dirs).suggested_closing()
+
+
+def suggest_tcp(
+    urdf_path: str | Path,
+    *,
+    palm_link: str | None = None,
+    links: Sequence[str] | None = None,
+    initial: Mapping[str, float] | None = None,
+    package_dirs: PackageDirs | None = None,
+) -> SuggestedTCP:
+    """Propose the tool-centre point: between the fingertips, in the palm link's frame.
+
+    Args:
+        urdf_path, palm_link, links, initial, package_dirs: as for :func:`suggest_approach`.
+
+    Returns:
+        the centroid of the fingertips' geometry at the initial configuration, in the
+        ``palm_link`` frame (default the root link), with that link's axes.
+
+    Raises:
+        RegistrationError: as :func:`suggest_approach`.
+    """
+    posed, tips = _fingertips(urdf_path, links, initial, package_dirs)
+    palm = palm_link or posed.doc.root_link
+    if palm not in posed.poses:
+        raise RegistrationError(
+            f"palm_link {palm!r} does not exist; links: {', '.join(posed.doc.links)}"
+        )
+    T = posed.poses[palm]
+    centre = T[:3, :3].T @ (np.mean([t.centroid for t in tips], axis=0) - T[:3, 3])
+    return SuggestedTCP(palm, tuple(float(round(x, 6)) for x in centre))

@@ -48,6 +48,7 @@ from ..output_files import check_output_path, write_atomically
 from ._urdf_source import initial_tags, parse_urdf, pose_urdf, read_urdf
 from .preview import TagPreview, preview_surface
 from .spec import _ATTR_FLOAT, ContactSpec, _element, _format_vector, _vector
+from .suggestion import SuggestedTCP, suggest_closing
 
 __all__ = ["tag_urdf"]
 
@@ -189,7 +190,7 @@ def _apply_rewrites(text: str, rewrites: Mapping[str, str]) -> str:
     return _MESH_TAG.sub(fix_tag, text)
 
 
-def _gripper_element(palm_link: str | None, approach) -> str | None:
+def _gripper_element(palm_link: str | None, approach, tcp=None) -> str | None:
     attrs = []
     if palm_link is not None:
         if not isinstance(palm_link, str) or not palm_link:
@@ -199,7 +200,19 @@ def _gripper_element(palm_link: str | None, approach) -> str | None:
     if approach is not None:
         unit = np.asarray(approach) / np.linalg.norm(approach)
         attrs.append(("approach", _format_vector(unit)))
+    if tcp is not None:
+        origin = _vector(getattr(tcp, "origin", None), "tcp origin")
+        if not isinstance(getattr(tcp, "link", None), str) or not tcp.link or origin is None:
+            raise RegistrationError(f"tcp={tcp!r} must be a SuggestedTCP(link, (x, y, z)), e.g. "
+                                    "suggest_tcp(urdf)")
+        attrs += [("tcp_link", tcp.link), ("tcp_origin", _format_vector(origin))]
     return _element("gripper", attrs) if attrs else None
+
+
+def _closing_elements(closing: Mapping[str, float]) -> list[str]:
+    """``<isf:closing joint sign>`` lines, one per joint."""
+    return [_element("closing", [("joint", joint), ("sign", "1" if sign > 0 else "-1")])
+            for joint, sign in closing.items()]
 
 
 def tag_urdf(
@@ -212,6 +225,8 @@ def tag_urdf(
     initial: Mapping[str, float] | None = None,
     package_dirs: PackageDirs | None = None,
     replace_tags: bool = False,
+    tcp: SuggestedTCP | None = None,
+    closing: Mapping[str, float] | str | None = None,
 ) -> TagPreview:
     """Write a tagged copy of a URDF, validate it and show what every tag selected.
 
@@ -228,6 +243,11 @@ def tag_urdf(
         initial: optional initial values of actuated joints, metres or radians.
         package_dirs: optional ``{package: folder}`` map for ``package://`` paths of the source.
         replace_tags: drop ``isf:*`` elements the source already has instead of refusing.
+        tcp: optional tool-centre point (``<isf:gripper tcp_link tcp_origin>``), e.g. from
+            :func:`isf.registration.suggest_tcp`; its link must be fixed to the root link.
+        closing: optional ``<isf:closing>`` signs ``{joint: +1 or -1}``, or ``"suggest"`` for
+            :func:`isf.registration.suggest_closing`'s (from the contact normals, once the
+            copy loads).
 
     Returns:
         the :class:`TagPreview`; ``preview.ok`` is True when the copy loads.
@@ -258,7 +278,9 @@ def tag_urdf(
     dups = sorted({n for n in names if names.count(n) > 1})
     if dups:
         raise RegistrationError(f"contact names {dups} are used more than once: make them unique")
-    gripper = _gripper_element(palm_link, approach)
+    if isinstance(closing, str) and closing != "suggest":
+        raise RegistrationError(f"closing={closing!r}: give {{joint: sign}} or 'suggest'")
+    gripper = _gripper_element(palm_link, approach, tcp)
     new_initial = initial_tags(initial)
 
     doc = parse_urdf(text, src)
@@ -279,9 +301,17 @@ def tag_urdf(
         _element("initial", [("joint", t.joint), ("value", _ATTR_FLOAT.format(t.value))])
         for t in new_initial
     ]
-    new = _insert_elements(new, elements)
+    if isinstance(closing, Mapping):
+        elements += _closing_elements(closing)
+    with_tags = _insert_elements(new, elements)
     dst.parent.mkdir(parents=True, exist_ok=True)
-    write_atomically(dst, new.encode("utf-8"), "tagged URDF")
+    write_atomically(dst, with_tags.encode("utf-8"), "tagged URDF")
+    if closing == "suggest" and inspect_gripper(dst).ok:
+        suggested = _closing_elements(suggest_closing(dst))
+        elements += suggested
+        with_tags = _insert_elements(new, elements)
+        write_atomically(dst, with_tags.encode("utf-8"), "tagged URDF")
+    new = with_tags
     t1 = time.perf_counter()
     log.info(
         "wrote %s (%d isf elements, %d mesh paths made absolute)",

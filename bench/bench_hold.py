@@ -1,0 +1,173 @@
+"""Do isf's best grasps hold? The physics test of ``isf validate`` on the ten YCB objects.
+
+For each gripper and YCB object (real size, ``asset:ycb:NAME``), one ``isf.plan`` of 60 samples
+(regret sampler, seed 0) per ranking, and the top 5 grasps simulated by
+:func:`isf.simulation.validate_grasp` (friction 0.5, 0.3 kg, fingers at 10 N: the defaults of
+``isf validate``; docs/validate.md). A grasp *holds* when the object stays within 10 mm and
+0.2 rad of its closed pose with gravity along each of +-x, +-y, +-z. Reported per gripper and
+ranking: top-1 = % of objects whose best grasp holds in all six directions; top-5 = % of the
+top-5 grasps (over all objects) that hold in all six; and the outcomes by kind.
+
+Rankings: ``fit`` (the paper's: valid first, then the fitting error) and, when ``isf.plan``
+has a ``rank`` parameter, ``quality`` (its stability-aware default). When
+``bench/antipodal_baseline.py`` is present, its ``plan_antipodal`` (friction-cone contact
+pairs, ranked by normal alignment and distance from the centre of mass, collision-checked) is
+judged the same way, for the parallel grippers and the Franka hand.
+
+Grippers: ``paper-parallel``, ``flat-parallel``, ``three-finger`` (bundled), ``franka-hand``
+(the vendor hand with one contact tag per finger pad, as bench/bench_scenes.py tags it).
+
+Run from the repository root:
+    python bench/bench_hold.py [--quick] [--grippers paper-parallel,franka-hand]
+                               [--objects Banana,MustardBottle] [--raw FILE.json] [--out FILE.md]
+"""
+
+from __future__ import annotations
+
+import _common
+
+import importlib
+import importlib.util
+import inspect
+import json
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+import isf
+from isf.simulation import SimulationSettings, object_body, validate_grasp
+
+SAMPLES, SEED, TOP, FRICTION = 60, 0, 5, 0.5
+GRIPPERS = ("paper-parallel", "flat-parallel", "three-finger", "franka-hand")
+PARALLEL = ("paper-parallel", "flat-parallel", "franka-hand")
+OBJECTS = ("Banana", "CrackerBox", "FoamBrick", "GelatinBox", "MasterChefCan", "MustardBottle",
+           "PottedMeatCan", "PowerDrill", "Scissors", "TomatoSoupCan")
+TARGETS = {"three-finger": (0.90, 0.80)}  # (top-1, top-5); the others: (0.95, 0.90)
+
+
+def meets(value: float, target: float) -> str:
+    """``"yes"`` when the fraction ``value`` reaches ``target``, else ``"no (target N %)"``."""
+    return "yes" if value >= target else f"no (target {100 * target:.0f} %)"
+
+
+def load(name: str, folder: Path) -> isf.Gripper:
+    if name == "franka-hand":
+        import bench_scenes
+
+        return bench_scenes.tagged_franka_hand(folder)
+    return isf.load_gripper(name)
+
+
+def rankings() -> tuple[str, ...]:
+    return ("fit", "quality") if "rank" in inspect.signature(isf.plan).parameters else ("fit",)
+
+
+def baseline():
+    """``plan_antipodal`` of bench/antipodal_baseline.py, or None when absent."""
+    if importlib.util.find_spec("antipodal_baseline") is None:
+        return None
+    return getattr(importlib.import_module("antipodal_baseline"), "plan_antipodal", None)
+
+
+def candidates(method: str, gripper, obj, plan_antipodal) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The top grasps of one method as (T_object_gripper (4, 4), q (n_joints,)) pairs."""
+    if method == "antipodal":
+        grasps = plan_antipodal(gripper, obj, n_grasps=20, seed=SEED, friction=FRICTION)
+    elif method == "fit" and len(rankings()) == 1:
+        grasps = isf.plan(gripper, obj, samples=SAMPLES, seed=SEED).grasps
+    else:
+        grasps = isf.plan(gripper, obj, samples=SAMPLES, seed=SEED, rank=method).grasps
+    out = []
+    for g in list(grasps)[:TOP]:
+        q = getattr(g, "q", None)
+        if q is None:
+            q = g.fit.q if hasattr(g, "fit") else [g.joints[n] for n in gripper.joint_names]
+        out.append((np.asarray(g.T_object_gripper, dtype=float), np.asarray(q, dtype=float)))
+    return out
+
+
+def main() -> None:
+    parser = _common.base_parser(__doc__.splitlines()[0], repeats=1, budget=0.0)
+    parser.add_argument("--grippers", default=",".join(GRIPPERS), help=f"comma-separated, of {GRIPPERS}")
+    parser.add_argument("--objects", default=",".join(OBJECTS), help="comma-separated YCB names")
+    parser.add_argument("--raw", default=None, help="also write every grasp's outcome as JSON")
+    parser.add_argument("--from-raw", default=None, metavar="FILE.json[,FILE.json]",
+                        help="report the outcomes previous --raw runs wrote, simulating nothing")
+    parser.add_argument("--methods", default=None,
+                        help="comma-separated, of fit, quality, antipodal (default: all available)")
+    parser.set_defaults(deadline=0.0)
+    args = parser.parse_args()
+    grippers = args.grippers.split(",")
+    objects = args.objects.split(",")[:2] if args.quick else args.objects.split(",")
+    started, header = time.perf_counter(), _common.machine_description()
+    deadline = _common.Deadline(args.deadline)
+    settings = SimulationSettings(friction=FRICTION)
+    plan_antipodal = baseline()
+    rows: list[dict] = ([r for f in args.from_raw.split(",") for r in json.loads(Path(f).read_text())]
+                        if args.from_raw else [])
+    with tempfile.TemporaryDirectory(prefix="isf-bench-hold-") as folder:
+        loaded = {} if args.from_raw else {name: load(name, Path(folder)) for name in grippers}
+        for obj_name in [] if args.from_raw else objects:
+            obj = isf.open_object(f"asset:ycb:{obj_name}")
+            body = object_body(obj.mesh_vertices, obj.mesh_faces, settings.mass)
+            for name, gripper in loaded.items():
+                methods = list(rankings())
+                if plan_antipodal is not None and name in PARALLEL:
+                    methods.append("antipodal")
+                if args.methods:
+                    methods = [m for m in methods if m in args.methods.split(",")]
+                for method in methods:
+                    label = f"{name} / {method} on {obj_name}"
+                    if not deadline.allows(label):
+                        continue
+                    t0 = time.perf_counter()
+                    outcomes = [validate_grasp(gripper, body, T, q, settings)
+                                for T, q in candidates(method, gripper, obj, plan_antipodal)]
+                    rows.append({"gripper": name, "method": method, "object": obj_name,
+                                 "outcomes": [v.outcome.value for v in outcomes],
+                                 "held_directions": [v.held_directions for v in outcomes],
+                                 "seconds": time.perf_counter() - t0})
+                    print(f"# {label}: {' '.join(rows[-1]['outcomes'])} "
+                          f"({rows[-1]['seconds']:.0f} s)", flush=True)
+                    if args.raw:
+                        Path(args.raw).write_text(json.dumps(rows, indent=1))
+    body_rows = []
+    for name in dict.fromkeys(r["gripper"] for r in rows):
+        top1_target, top5_target = TARGETS.get(name, (0.95, 0.90))
+        for method in dict.fromkeys(r["method"] for r in rows if r["gripper"] == name):
+            mine = [r for r in rows if r["gripper"] == name and r["method"] == method]
+            top1 = sum(bool(r["outcomes"]) and r["outcomes"][0] == "held" for r in mine)
+            # a method that found fewer than TOP grasps fails on the missing ones
+            all5 = [o for r in mine for o in r["outcomes"] + ["no grasp"] * (TOP - len(r["outcomes"]))]
+            held5 = sum(o == "held" for o in all5)
+            kinds = ", ".join(f"{k} {sum(o == k for o in all5)}"
+                              for k in ("slipped", "ejected", "penetrating", "no grasp") if k in all5)
+            body_rows.append([name, method, len(mine),
+                              f"{top1}/{len(mine)} ({100 * top1 / max(1, len(mine)):.0f} %)",
+                              meets(top1 / max(1, len(mine)), top1_target),
+                              f"{held5}/{len(all5)} ({100 * held5 / max(1, len(all5)):.0f} %)",
+                              meets(held5 / max(1, len(all5)), top5_target),
+                              kinds or "-"])
+    table = _common.markdown_table(
+        ["gripper", "ranking", "objects", "top-1 holds in all 6", "target top-1",
+         "top-5 grasps holding in all 6", "target top-5", "top-5 failures"], body_rows)
+    per_object = _common.markdown_table(
+        ["gripper", "ranking", "object", "top-5 outcomes (directions held of 6)"],
+        [[r["gripper"], r["method"], r["object"],
+          " ".join(f"{o[0].upper()}{h}" for o, h in zip(r["outcomes"], r["held_directions"]))]
+         for r in rows])
+    text = (f"{SAMPLES} samples, regret sampler, seed {SEED}, YCB objects at real size; top {TOP} "
+            f"grasps of each plan simulated with friction {settings.friction}, "
+            f"{settings.mass} kg, finger force {settings.finger_force} N. Outcome letters: "
+            "H held in all six directions, S slipped (in at least one), E ejected while closing, "
+            "P penetrating; the digit is how many directions held. A method that returned fewer than "
+            f"{TOP} grasps for an object counts each missing one as a failure.")
+    _common.finish("bench_hold: do the top grasps hold in physics (isf validate)?",
+                   ["### Top grasps held", text, table, "### By object", per_object,
+                    *deadline.note()], started, header, args.out)
+
+
+if __name__ == "__main__":
+    main()

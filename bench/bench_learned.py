@@ -1,0 +1,185 @@
+"""The ``learned`` sampler against the ``regret`` sampler on objects the models never saw.
+
+For each gripper (``paper-parallel``, ``flat-parallel``, ``three-finger`` and the Franka hand
+tagged by ``isf tag``, :func:`isf_sampler_learned.bundled.tagged_franka_hand`), each test
+object and each seed, both samplers plan 60 samples (``isf.plan`` defaults otherwise) with the
+bundled model of ``isf-sampler-learned``. The script refuses a test object that a model was
+trained on (the model file lists its objects).
+
+Reported per gripper, object and sampler (medians over the seeds): valid grasps among the first
+10 samples, samples to the first valid grasp (61 when none), valid grasps of 60, mean fitting
+error of the valid grasps (``FitResult.mean_distance``, finite ones), and the sampler's own
+time (``reset``, ``propose``, ``observe``) as a share of the plan's ``total_time``. The
+summary per gripper gives the targets of the learned sampler: median over objects of the
+ratios learned / regret, and the worst object.
+
+Needs the YCB meshes (``../shared/data/ycb`` or ``$ISF_YCB_DIR``) and the plugin installed
+(``pip install -e plugins/isf-sampler-learned``).
+
+Run from the repository root:
+    python bench/bench_learned.py [--quick] [--seeds 3] [--gripper NAME] [--objects N] [--out FILE]
+"""
+
+from __future__ import annotations
+
+import _common
+
+import argparse
+import statistics
+import sys
+import tempfile
+import time
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+import isf
+from isf.samplers.regret import RegretSampler
+from isf_sampler_learned import LearnedSampler, gripper_sha256
+from isf_sampler_learned.bundled import bundled_model, tagged_franka_hand
+
+GRIPPERS = ("paper-parallel", "flat-parallel", "three-finger", "franka-hand")
+TEST_OBJECTS = ("asset:ycb:FoamBrick", "asset:ycb:GelatinBox", "asset:ycb:PottedMeatCan",
+                "asset:ycb:Scissors", "asset:ycb:TomatoSoupCan", "asset:dragon",
+                "asset:random-400", "asset:random-401")
+QUICK_OBJECTS = 3
+SAMPLES = 60
+FIRST = 10
+TARGETS = "valid@10 >= 1.5x regret; first valid <= 0.5x regret; valid@60 >= regret; " \
+          "error <= regret; sampler time <= 10 % of the plan"
+
+
+def timed(cls: type) -> type:
+    """A subclass of sampler class ``cls`` that adds its time in reset, propose and observe to
+    ``self.seconds``."""
+
+    class Timed(cls):
+        seconds = 0.0
+
+        def _clock(self, method, *args):
+            start = time.perf_counter()
+            try:
+                return method(*args)
+            finally:
+                self.seconds += time.perf_counter() - start
+
+        def reset(self, obj, gripper, rng):
+            self.seconds = 0.0
+            return self._clock(super().reset, obj, gripper, rng)
+
+        def propose(self, n, rng):
+            return self._clock(super().propose, n, rng)
+
+        def observe(self, outcomes):
+            return self._clock(super().observe, outcomes)
+
+    Timed.__name__ = f"Timed{cls.__name__}"
+    return Timed
+
+
+@dataclass(frozen=True)
+class Run:
+    """One plan's figures."""
+
+    valid_first: int
+    first_valid: int
+    valid: int
+    error_mm: float
+    sampler_share: float
+
+
+def run_once(gripper: isf.Gripper, obj: isf.ObjectSurface, sampler_cls: type, seed: int) -> Run:
+    sampler = timed(sampler_cls)()
+    result = isf.plan(gripper, obj, samples=SAMPLES, sampler=sampler, seed=seed)
+    ordered = sorted(result.grasps, key=lambda g: g.sample_index)
+    valid = [g.valid for g in ordered]
+    errors = [g.fit.mean_distance for g in ordered if g.valid and np.isfinite(g.fit.mean_distance)]
+    return Run(valid_first=sum(valid[:FIRST]),
+               first_valid=valid.index(True) + 1 if any(valid) else SAMPLES + 1,
+               valid=sum(valid), error_mm=1e3 * float(np.mean(errors)) if errors else float("nan"),
+               sampler_share=sampler.seconds / result.stats.total_time)
+
+
+def median_run(runs: list[Run]) -> Run:
+    def med(key):
+        values = [getattr(r, key) for r in runs if np.isfinite(getattr(r, key))]
+        return statistics.median(values) if values else float("nan")
+
+    return Run(*(med(key) for key in Run.__dataclass_fields__))
+
+
+def load(name: str, folder: Path) -> isf.Gripper:
+    gripper = tagged_franka_hand(folder) if name == "franka-hand" else isf.load_gripper(name)
+    model = bundled_model(gripper_sha256(gripper))
+    if model is None:
+        raise SystemExit(f"no bundled model for {name}: run "
+                         "plugins/isf-sampler-learned/scripts/train_bundled.py")
+    seen = set(TEST_OBJECTS) & set(model.info.get("objects", ()))
+    if seen:
+        raise SystemExit(f"the {name} model was trained on test objects {sorted(seen)}")
+    return gripper
+
+
+def ratio(a: float, b: float) -> float:
+    return a / b if b else (float("inf") if a else 1.0)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", type=int, default=3, help="seeds 0 .. N-1 (default 3)")
+    parser.add_argument("--gripper", action="append", choices=GRIPPERS)
+    parser.add_argument("--quick", action="store_true",
+                        help=f"one seed, the first {QUICK_OBJECTS} objects")
+    parser.add_argument("--objects", type=int, help="the first N test objects only")
+    parser.add_argument("--out", help="also write the markdown report to this file")
+    args = parser.parse_args()
+    seeds = range(1 if args.quick else args.seeds)
+    objects = TEST_OBJECTS[:QUICK_OBJECTS if args.quick else args.objects]
+    warnings.simplefilter("ignore")  # objects larger than a jaw's opening are expected
+    started = time.perf_counter()
+    header = ["gripper", "object", "sampler", "valid@10", "first valid", "valid@60",
+              "error (mm)", "sampler time"]
+    rows, summary = [], []
+    with tempfile.TemporaryDirectory() as folder:
+        for name in args.gripper or GRIPPERS:
+            gripper = load(name, Path(folder))
+            ratios = []
+            for spec in objects:
+                obj = isf.open_object(spec)
+                medians = {}
+                for label, cls in (("regret", RegretSampler), ("learned", LearnedSampler)):
+                    medians[label] = m = median_run([run_once(gripper, obj, cls, s) for s in seeds])
+                    rows.append([name, spec.removeprefix("asset:"), label, _common.fmt(m.valid_first),
+                                 _common.fmt(m.first_valid), _common.fmt(m.valid),
+                                 _common.fmt(m.error_mm), f"{100 * m.sampler_share:.1f} %"])
+                    print(" | ".join(rows[-1]), flush=True)
+                r, l = medians["regret"], medians["learned"]
+                ratios.append((ratio(l.valid_first, r.valid_first), ratio(l.first_valid, r.first_valid),
+                               l.valid - r.valid, ratio(l.error_mm, r.error_mm), l.sampler_share))
+            columns = list(zip(*ratios))
+            summary.append([name,
+                            f"{_common.fmt(statistics.median(columns[0]))} (worst {_common.fmt(min(columns[0]))})",
+                            f"{_common.fmt(statistics.median(columns[1]))} (worst {_common.fmt(max(columns[1]))})",
+                            f"{_common.fmt(statistics.median(columns[2]))} (worst {_common.fmt(min(columns[2]))})",
+                            f"{_common.fmt(statistics.median(columns[3]))} (worst {_common.fmt(max(columns[3]))})",
+                            f"{100 * max(columns[4]):.1f} %"])
+    report = "\n\n".join([
+        f"Command: `{' '.join(['python', *sys.argv])}`; seeds {list(seeds)}; "
+        f"{time.perf_counter() - started:.0f} s.",
+        _common.machine_description(),
+        "Per gripper, object and sampler (medians over the seeds):",
+        _common.markdown_table(header, rows),
+        f"Targets of `learned` against `regret` ({TARGETS}); median over objects (worst object):",
+        _common.markdown_table(["gripper", "valid@10 ratio", "first-valid ratio",
+                                "valid@60 difference", "error ratio", "sampler time (max)"],
+                               summary),
+    ])
+    print(report)
+    if args.out:
+        Path(args.out).write_text(report + "\n")
+
+
+if __name__ == "__main__":
+    main()

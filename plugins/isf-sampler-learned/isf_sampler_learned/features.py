@@ -1,0 +1,240 @@
+"""Features of a candidate start that transfer across objects and frames.
+
+A start is a grasp centre ``c`` (object frame, metres) and a gripper orientation
+``R_object_gripper``. Its features describe what ISF will meet there, measured in the
+gripper's own frame and scale, never in absolute coordinates:
+
+======================  ==============================================================
+``approach_cos``        cosine between the approach axis and the inward surface normal
+``closing_normal``      ``|closing axis . normal|`` (1: the jaws close along the normal)
+``closing_extent``      object extent along the closing axis through ``c``, in openings
+``closing_offset``      distance from ``c`` to the middle of that extent, in openings
+``approach_depth``      object depth ahead of ``c`` along the approach axis, in openings
+``surface_variation``   curvature at the opening's scale: ``l0 / (l0 + l1 + l2)`` of the
+                        neighbours' covariance (0 flat, 1/3 isotropic)
+``normal_spread``       ``1 - |mean normal|`` of the neighbours (0 flat, 1 folded)
+``surface_distance``    distance from ``c`` to the nearest object point, in openings
+``object_major``        the object's largest principal extent, in openings
+``object_middle``       its middle principal extent, in openings
+``object_minor``        its smallest principal extent, in openings
+======================  ==============================================================
+
+The gripper's *opening* ``w`` is the spread of its contact points along its closing axis at
+``q_initial`` (metres); the *closing axis* is their first principal axis (gripper frame);
+the *approach axis* is the declared ``<isf:gripper approach>`` in the gripper frame, or,
+for a gripper without one, the contact points' last principal axis. Neighbourhoods are
+balls of radius ``w / 2``; the closing and approach tubes have radius ``w / 4``.
+
+:data:`FEATURE_VERSION` names this definition; a model file records it, and a model made
+with another definition is refused.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from isf.samplers import grasp_centre
+from isf.samplers.orientation import approach_direction
+
+if TYPE_CHECKING:
+    from scipy.spatial import cKDTree
+
+    from isf.gripper.model import Gripper
+    from isf.object.surface import ObjectSurface
+
+__all__ = [
+    "FEATURE_NAMES",
+    "FEATURE_VERSION",
+    "GripperAxes",
+    "ObjectDescriptors",
+    "candidate_features",
+    "gripper_axes",
+    "gripper_sha256",
+]
+
+FEATURE_VERSION = "isf-learned-features/1"
+FEATURE_NAMES = (
+    "approach_cos",
+    "closing_normal",
+    "closing_extent",
+    "closing_offset",
+    "approach_depth",
+    "surface_variation",
+    "normal_spread",
+    "surface_distance",
+    "object_major",
+    "object_middle",
+    "object_minor",
+)
+_TUBE = 0.25  # tube radius, in openings
+_BALL = 0.5  # neighbourhood radius, in openings
+
+
+def gripper_sha256(gripper: Gripper) -> str:
+    """sha256 of the gripper as isf models it: joint limits, ``q_initial``, approach, and each
+    contact surface's name, link, points and normals (rounded to 1 um and 1e-6).
+
+    Two loads of the same tagged URDF give the same digest wherever the file lies; a change
+    of tags, joint limits or surface sampling changes it.
+    """
+    digest = hashlib.sha256()
+
+    def add(array) -> None:
+        values = np.round(np.asarray(array, dtype=float), 6) + 0.0  # -0.0 -> 0.0
+        digest.update(values.tobytes())
+
+    add(gripper.lower)
+    add(gripper.upper)
+    add(gripper.q_initial)
+    add([] if gripper.approach is None else gripper.approach)
+    digest.update(str(gripper.palm_link).encode())
+    for surface in gripper.surfaces:
+        digest.update(f"{surface.name}\0{surface.link}\0".encode())
+        add(surface.points)
+        add(surface.normals)
+    return digest.hexdigest()
+
+
+@dataclass(frozen=True)
+class GripperAxes:
+    """The gripper's frame of reference for features (gripper frame).
+
+    Attributes:
+        centre: grasp centre (mean contact point at ``q_initial``), shape (3,), metres.
+        approach: unit approach axis, shape (3,).
+        closing: unit closing axis (first principal axis of the contact points), shape (3,).
+        opening: spread of the contact points along ``closing``, metres.
+    """
+
+    centre: np.ndarray
+    approach: np.ndarray
+    closing: np.ndarray
+    opening: float
+
+
+def gripper_axes(gripper: Gripper) -> GripperAxes:
+    """The :class:`GripperAxes` of ``gripper``."""
+    points, _ = gripper.contact_points(gripper.q_initial)
+    centre = np.asarray(grasp_centre(gripper), dtype=float)
+    _, _, axes = np.linalg.svd(points - points.mean(axis=0), full_matrices=False)
+    closing = axes[0]
+    approach = approach_direction(gripper)
+    if approach is None:
+        approach = axes[-1]
+    projection = (points - centre) @ closing
+    opening = float(projection.max() - projection.min())
+    return GripperAxes(centre=centre, approach=approach, closing=closing,
+                       opening=max(opening, 1e-6))
+
+
+@dataclass(eq=False)
+class ObjectDescriptors:
+    """What features need of one object for one gripper; local descriptors are computed on
+    first use per point and kept.
+
+    Attributes:
+        points: object points, object frame, shape (N, 3), metres.
+        normals: unit outward normals, shape (N, 3).
+        opening: the gripper's opening, metres.
+        tree: k-d tree of ``points``.
+        extents: the object's principal extents, largest first, in openings, shape (3,).
+    """
+
+    points: np.ndarray
+    normals: np.ndarray
+    opening: float
+    tree: cKDTree
+    extents: np.ndarray
+    _local: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        self._local = np.full((len(self.points), 2), np.nan)
+
+    @classmethod
+    def build(cls, obj: ObjectSurface, axes: GripperAxes) -> ObjectDescriptors:
+        """Descriptors of ``obj`` at the scale of a gripper with ``axes``."""
+        from scipy.spatial import cKDTree  # here: listing the samplers loads this module
+
+        points = np.asarray(obj.points, dtype=float)
+        centred = points - points.mean(axis=0)
+        _, _, principal = np.linalg.svd(centred, full_matrices=False)
+        projected = centred @ principal.T
+        extents = np.sort(projected.max(axis=0) - projected.min(axis=0))[::-1] / axes.opening
+        return cls(points=points, normals=np.asarray(obj.normals, dtype=float),
+                   opening=axes.opening, tree=cKDTree(points), extents=extents)
+
+    def local(self, index: np.ndarray) -> np.ndarray:
+        """``surface_variation`` and ``normal_spread`` at object points ``index``, shape (M, 2).
+        """
+        index = np.asarray(index, dtype=int)
+        missing = np.unique(index[np.isnan(self._local[index, 0])])
+        if len(missing):
+            neighbours = self.tree.query_ball_point(self.points[missing], _BALL * self.opening)
+            for i, near in zip(missing, neighbours):
+                if len(near) < 4:
+                    self._local[i] = 0.0
+                    continue
+                eigen = np.linalg.eigvalsh(np.cov(self.points[near].T))
+                self._local[i, 0] = eigen[0] / max(eigen.sum(), 1e-30)
+                self._local[i, 1] = 1.0 - np.linalg.norm(self.normals[near].mean(axis=0))
+        return self._local[index]
+
+
+def _tube_range(points: np.ndarray, centres: np.ndarray, directions: np.ndarray,
+                radius: float) -> tuple[np.ndarray, np.ndarray]:
+    """Per candidate, min and max of ``(p - c) . d`` over the points within ``radius`` of the
+    line through ``c`` along ``d``; (0, 0) where none is. Shapes (M,), metres. Candidates that
+    share a centre (the spins of one point) share one pass over the points."""
+    low = np.zeros(len(centres))
+    high = np.zeros(len(centres))
+    unique, group = np.unique(centres, axis=0, return_inverse=True)
+    group = group.reshape(-1)
+    for g, centre in enumerate(unique):
+        members = np.flatnonzero(group == g)
+        offset = points - centre  # (N, 3)
+        along = offset @ directions[members].T  # (N, m)
+        across2 = np.einsum("nk,nk->n", offset, offset)[:, None] - along**2
+        inside = across2 <= radius**2
+        any_inside = inside.any(axis=0)
+        low[members] = np.where(any_inside, np.where(inside, along, np.inf).min(axis=0), 0.0)
+        high[members] = np.where(any_inside, np.where(inside, along, -np.inf).max(axis=0), 0.0)
+    return low, high
+
+
+def candidate_features(descriptors: ObjectDescriptors, axes: GripperAxes,
+                       centres: np.ndarray, R_object_gripper: np.ndarray) -> np.ndarray:
+    """Features of candidate starts (see the module docstring for their meaning).
+
+    Args:
+        descriptors: the object's :class:`ObjectDescriptors`.
+        axes: the gripper's :class:`GripperAxes`.
+        centres: grasp centres, object frame, shape (M, 3), metres.
+        R_object_gripper: gripper orientations, shape (M, 3, 3).
+
+    Returns:
+        features, shape (M, len(FEATURE_NAMES)), ordered as :data:`FEATURE_NAMES`.
+    """
+    centres = np.asarray(centres, dtype=float).reshape(-1, 3)
+    R = np.asarray(R_object_gripper, dtype=float).reshape(-1, 3, 3)
+    w = descriptors.opening
+    distance, nearest = descriptors.tree.query(centres)
+    normal = descriptors.normals[nearest]
+    approach = R @ axes.approach
+    closing = R @ axes.closing
+    low, high = _tube_range(descriptors.points, centres, closing, _TUBE * w)
+    _, depth = _tube_range(descriptors.points, centres, approach, _TUBE * w)
+    columns = [
+        -np.einsum("mk,mk->m", approach, normal),
+        np.abs(np.einsum("mk,mk->m", closing, normal)),
+        (high - low) / w,
+        np.abs(0.5 * (high + low)) / w,
+        np.maximum(depth, 0.0) / w,
+        *descriptors.local(nearest).T,
+        distance / w,
+        *(np.full(len(centres), e) for e in descriptors.extents),
+    ]
+    return np.column_stack(columns)

@@ -1,0 +1,228 @@
+"""Tests of the ``learned`` sampler plugin: conformance, features, model, training."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import warnings
+
+import numpy as np
+import pytest
+
+import isf
+from isf.samplers import Outcome, available_samplers, get_sampler
+from isf.testing import canonical_gripper, canonical_object, check_sampler
+from isf_sampler_learned import (
+    FEATURE_VERSION,
+    LearnedSampler,
+    ModelFileError,
+    NoModelWarning,
+    gripper_sha256,
+    load_model,
+)
+from isf_sampler_learned.bundled import bundled_models
+from isf_sampler_learned.features import (
+    FEATURE_NAMES,
+    ObjectDescriptors,
+    candidate_features,
+    gripper_axes,
+)
+from isf_sampler_learned.model import MODEL_FORMAT, fit_model
+from isf_sampler_learned.training import collect_examples
+
+BUNDLED = ("paper-parallel", "flat-parallel", "three-finger")
+
+
+def synthetic_model(gripper, path, feature=0):
+    """A model for ``gripper`` fitted to labels 'valid when feature ``feature`` > 0.5'."""
+    rng = np.random.default_rng(7)
+    x = rng.uniform(0.0, 1.0, size=(400, len(FEATURE_NAMES)))
+    valid = x[:, feature] > 0.5
+    error = np.where(valid, 1e-3 * (1.0 + x[:, 1]), np.inf)
+    model = fit_model(x, valid, error, gripper_sha256=gripper_sha256(gripper),
+                      gripper_name=gripper.name)
+    return model.save(path)
+
+
+def test_entry_point_reaches_the_sampler():
+    assert available_samplers()["learned"].distribution == "isf-sampler-learned"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", NoModelWarning)
+        assert isinstance(get_sampler("learned"), LearnedSampler)
+
+
+def test_conformance(tmp_path):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", NoModelWarning)
+        check_sampler(LearnedSampler)
+        check_sampler(LearnedSampler, gripper=canonical_gripper(approach=None))
+    check_sampler(LearnedSampler(model="none", candidates=40, spins=4),
+                  obj=canonical_object("sphere"))
+    path = synthetic_model(canonical_gripper(), tmp_path / "canonical.npz")
+    check_sampler(LearnedSampler(model=str(path)))
+
+
+@pytest.mark.parametrize("param, message", [
+    ("candidates=0", "candidates must be an integer >= 1"),
+    ("decay=0", "decay must be a number > 0.0"),
+    ("exploration=-1", "exploration must be a number >= 0.0"),
+    ("model=3", "model must be"),
+])
+def test_bad_parameters_are_one_line_config_errors(param, message):
+    key, value = param.split("=")
+    with pytest.raises(isf.ConfigError, match=message) as err:
+        LearnedSampler(**{key: int(value)})
+    assert "\n" not in str(err.value)
+
+
+def box_face_start():
+    """The canonical gripper facing the canonical box's top face (normal +z) at the sample
+    point nearest its centre, closing along the box's 6 cm x axis: centre (3,), R (3, 3)."""
+    gripper, obj = canonical_gripper(), canonical_object("box")
+    axes = gripper_axes(gripper)
+    top = np.flatnonzero(obj.normals[:, 2] > 0.99)
+    centre = obj.points[top[np.argmin(np.linalg.norm(obj.points[top, :2], axis=1))]]
+    source = np.column_stack([axes.approach, axes.closing, np.cross(axes.approach, axes.closing)])
+    target = np.column_stack([[0, 0, -1.0], [1.0, 0, 0], np.cross([0, 0, -1.0], [1.0, 0, 0])])
+    return gripper, obj, axes, centre, target @ source.T
+
+
+def test_gripper_axes_of_the_canonical_gripper():
+    gripper, _, axes, _, _ = box_face_start()
+    palm = gripper.link_poses(gripper.q_initial)["palm"][:3, :3]
+    assert axes.opening == pytest.approx(0.04, abs=1e-9)  # pads 2 x 0.02 m from the palm
+    assert abs(axes.closing @ palm[:, 1]) == pytest.approx(1.0, abs=1e-9)  # the palm's y
+    np.testing.assert_allclose(axes.approach, palm[:, 2], atol=1e-12)  # declared (0, 0, 1)
+
+
+def test_features_of_a_start_on_a_box_face_match_the_box():
+    _, obj, axes, centre, R = box_face_start()
+    f = dict(zip(FEATURE_NAMES, candidate_features(ObjectDescriptors.build(obj, axes), axes,
+                                                   centre[None], R[None])[0]))
+    assert f["approach_cos"] == pytest.approx(1.0)
+    assert f["closing_normal"] == pytest.approx(0.0, abs=1e-12)
+    assert f["closing_extent"] == pytest.approx(0.06 / 0.04, abs=1e-9)  # end faces at x = +-3 cm
+    assert f["approach_depth"] == pytest.approx(0.03 / 0.04, abs=1e-9)  # bottom face 3 cm down
+    assert f["closing_offset"] == pytest.approx(abs(centre[0]) / 0.04, abs=1e-9)
+    assert f["surface_distance"] == 0.0
+    assert f["surface_variation"] == pytest.approx(0.0, abs=1e-12)  # flat within 2 cm
+    # principal axes of 400 random samples tilt a little off the box's: a few mm more extent
+    np.testing.assert_allclose([f["object_major"], f["object_middle"], f["object_minor"]],
+                               np.array([0.06, 0.04, 0.03]) / 0.04, atol=0.1)
+
+
+def test_features_do_not_depend_on_the_object_frame():
+    _, obj, axes, centre, R = box_face_start()
+    moved = isf.ObjectSurface(points=obj.points @ np.array([[0, -1, 0], [1, 0, 0], [0, 0, 1.0]]).T
+                              + [0.3, -0.2, 0.1], normals=obj.normals @ np.array(
+                                  [[0, -1, 0], [1, 0, 0], [0, 0, 1.0]]).T, spacing=obj.spacing)
+    turn = np.array([[0, -1, 0], [1, 0, 0], [0, 0, 1.0]])
+    before = candidate_features(ObjectDescriptors.build(obj, axes), axes, centre[None], R[None])
+    after = candidate_features(ObjectDescriptors.build(moved, axes), axes,
+                               (turn @ centre + [0.3, -0.2, 0.1])[None], (turn @ R)[None])
+    np.testing.assert_allclose(after, before, atol=1e-9)
+
+
+def test_validity_head_matches_scikit_learn_logistic_regression():
+    sklearn = pytest.importorskip("sklearn.linear_model")
+    rng = np.random.default_rng(3)
+    x = rng.normal(size=(300, len(FEATURE_NAMES)))
+    valid = rng.uniform(size=300) < 1 / (1 + np.exp(-(x[:, 0] - x[:, 2] ** 2)))
+    model = fit_model(x, valid, np.full(300, 1e-3), gripper_sha256="0" * 64, gripper_name="g",
+                      l2=2.0)
+    B = model.basis(x)[:, 1:]
+    reference = sklearn.LogisticRegression(C=1 / 2.0, tol=1e-12, max_iter=10000).fit(B, valid)
+    np.testing.assert_allclose(model.p_valid(x), reference.predict_proba(B)[:, 1], atol=1e-5)
+
+
+def test_model_file_round_trip_and_refusals(tmp_path):
+    gripper = canonical_gripper()
+    path = synthetic_model(gripper, tmp_path / "m")
+    assert path.suffix == ".npz"
+    model = load_model(path, gripper_sha256=gripper_sha256(gripper))
+    x = np.random.default_rng(1).uniform(size=(50, len(FEATURE_NAMES)))
+    assert ((model.p_valid(x) > 0.5) == (x[:, 0] > 0.5)).mean() > 0.9
+
+    other = canonical_gripper(approach=None)
+    with pytest.raises(ModelFileError, match="trained for gripper 'isf_test_gripper'") as err:
+        load_model(path, gripper_sha256=gripper_sha256(other))
+    assert "\n" not in str(err.value)
+
+    with np.load(path, allow_pickle=False) as data:
+        fields = dict(data)
+    np.savez(tmp_path / "old.npz", **{**fields, "feature_version": np.array("features/0")})
+    with pytest.raises(ModelFileError, match=f"this plugin computes '{FEATURE_VERSION}'"):
+        load_model(tmp_path / "old.npz")
+    np.savez(tmp_path / "pickled.npz", format=np.array(MODEL_FORMAT),
+             feature_version=np.array([{"not": "plain"}], dtype=object))
+    with pytest.raises(ModelFileError, match="cannot read sampler model"):
+        load_model(tmp_path / "pickled.npz")
+    (tmp_path / "text.npz").write_text("not a model")
+    with pytest.raises(ModelFileError, match="cannot read"):
+        load_model(tmp_path / "text.npz")
+
+
+def test_a_model_for_another_gripper_fails_the_plan_with_one_line(tmp_path):
+    path = synthetic_model(canonical_gripper(), tmp_path / "canonical.npz")
+    with pytest.raises(ModelFileError, match="not this one"):
+        isf.plan("paper-parallel", isf.open_object("shape:box"), samples=1,
+                 sampler=LearnedSampler(model=str(path)))
+
+
+def test_proposals_follow_the_model_and_the_outcomes(tmp_path):
+    gripper, obj = canonical_gripper(), canonical_object("box")
+    # valid when the approach axis faces the surface: every facing candidate scores high,
+    # so use the closing extent (feature 2) to rank them instead
+    path = synthetic_model(gripper, tmp_path / "m.npz", feature=2)
+    sampler = LearnedSampler(model=str(path), exploration=0.0)
+    rng = np.random.default_rng(0)
+    sampler.reset(obj, gripper, rng)
+    first = sampler.propose(5, rng)
+    assert all(p.record["p_valid"] >= np.quantile(sampler.p_valid, 0.9) for p in first)
+
+    region = first[0].record["region"]
+    members = sampler.region == region
+    before = sampler.scores()[members]
+    sampler.observe([Outcome(first[0], error=np.inf, collision_free=False)] * 3)
+    a, p0 = sampler.prior_strength, sampler.p_valid[members]
+    error_term = before - (np.log(p0) - np.log1p(-p0))  # no error observed: unchanged
+    expected = np.log(a * p0 / (a + 3)) - np.log1p(-a * p0 / (a + 3)) + error_term
+    np.testing.assert_allclose(sampler.scores()[members], expected, atol=1e-9)
+    assert (sampler.scores()[members] < before).all()
+    with pytest.raises(ValueError, match="no valid 'candidate'"):
+        sampler.observe([Outcome(isf.samplers.Proposal(np.eye(4)), 1e-3, True)])
+
+
+def test_training_examples_are_labelled_and_deterministic():
+    gripper = isf.load_gripper("flat-parallel")
+    objects = [isf.open_object("shape:box"), isf.open_object("shape:sphere")]
+    one = collect_examples(gripper, objects, samplers=("uniform",), samples=4, seed=5)
+    two = collect_examples(gripper, objects, samplers=("uniform",), samples=4, seed=5)
+    np.testing.assert_array_equal(one.features, two.features)
+    np.testing.assert_array_equal(one.valid, two.valid)
+    assert one.features.shape == (8, len(FEATURE_NAMES)) and list(one.group) == [0] * 4 + [1] * 4
+    plan = isf.plan(gripper, objects[0], samples=4, sampler="uniform", seed=5)
+    assert sorted(one.valid[:4]) == sorted(g.valid for g in plan.grasps)
+
+
+def test_train_command_reports_a_bad_gripper_in_one_line(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "isf_sampler_learned", "train", "--gripper",
+                           str(tmp_path / "none.urdf"), "--objects", "shape:box", "--out",
+                           str(tmp_path / "m.npz")], capture_output=True, text=True)
+    assert proc.returncode == 2
+    assert proc.stderr.count("\n") == 1 and "error:" in proc.stderr
+
+
+@pytest.mark.parametrize("name", BUNDLED)
+def test_bundled_grippers_find_their_shipped_model(name):
+    gripper = isf.load_gripper(name)
+    assert gripper_sha256(gripper) in bundled_models(), f"no model ships for {name}"
+    model = load_model(bundled_models()[gripper_sha256(gripper)], gripper_sha256(gripper))
+    assert model.gripper_name == name and model.info["held_out"] is not None
+    json.dumps(model.info, allow_nan=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", NoModelWarning)
+        result = isf.plan(gripper, isf.open_object("shape:cylinder"), samples=3,
+                          sampler="learned", seed=0)
+    assert result.grasps[0].sampler_record["p_valid"] != 0.5

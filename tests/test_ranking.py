@@ -1,0 +1,95 @@
+"""Stability-aware ranking: isf.plan(rank="quality") and rank="fit", their JSON and CLI flags."""
+
+import json
+import subprocess
+import sys
+
+import jsonschema
+import numpy as np
+import pytest
+
+import isf
+from isf.planning.plan_json import SCHEMA_PATH
+from isf.quality import MARGIN_TARGET, QualityConfig, grasp_quality, object_properties
+
+
+@pytest.fixture(scope="module")
+def plans(paper_gripper, cylinder):
+    """The same run ranked both ways (the loop does not depend on the ranking)."""
+    return (isf.plan(paper_gripper, cylinder, samples=12, seed=0, diversity=None),
+            isf.plan(paper_gripper, cylinder, samples=12, seed=0, diversity=None, rank="fit"))
+
+
+def test_quality_ranking_puts_resisting_grasps_first(plans, paper_gripper, cylinder):
+    by_quality, by_fit = plans
+    assert sorted(g.sample_index for g in by_quality.grasps) == list(range(12))
+    assert by_quality.rank == "quality" and by_fit.rank == "fit"
+    assert all((g.quality is not None) == g.valid for g in by_quality.grasps)
+    assert all(g.quality is None for g in by_fit.grasps)
+    assert by_fit.stats.quality_time == 0.0 < by_quality.stats.quality_time
+    # the fit ranking is the paper's: by mean distance within each validity class
+    keys = [g.sort_key() for g in by_fit.grasps]
+    assert keys == sorted(keys)
+    # independently recomputed: no valid grasp holds better than the top one, and among those
+    # that hold as well, none has a larger epsilon
+    properties = object_properties(cylinder)
+    recomputed = [grasp_quality(paper_gripper, cylinder, g.T_object_gripper, g.q,
+                                by_quality.quality, properties)
+                  for g in by_fit.grasps if g.valid]
+    assert recomputed
+    held = [min(q.min_margin, MARGIN_TARGET) for q in recomputed]
+    best = by_quality.best.quality
+    assert min(best.min_margin, MARGIN_TARGET) == pytest.approx(max(held))
+    ties = [q.epsilon for q, h in zip(recomputed, held) if h == pytest.approx(max(held))]
+    assert best.epsilon == pytest.approx(max(ties))
+
+
+def test_friction_changes_the_quality(paper_gripper, cylinder):
+    slippery = isf.plan(paper_gripper, cylinder, samples=6, seed=0,
+                        quality=QualityConfig(friction=0.1))
+    grippy = isf.plan(paper_gripper, cylinder, samples=6, seed=0,
+                      quality=QualityConfig(friction=0.8))
+    for a, b in zip(sorted(slippery.grasps, key=lambda g: g.sample_index),
+                    sorted(grippy.grasps, key=lambda g: g.sample_index)):
+        if a.valid:
+            assert a.quality.friction == 0.1 and b.quality.friction == 0.8
+            assert a.quality.epsilon < b.quality.epsilon
+
+
+def test_plan_rejects_unknown_ranking(paper_gripper, cylinder):
+    with pytest.raises(isf.InvalidInputError, match="rank must be"):
+        isf.plan(paper_gripper, cylinder, samples=2, rank="best")
+    with pytest.raises(isf.InvalidInputError, match="QualityConfig"):
+        isf.plan(paper_gripper, cylinder, samples=2, quality={"friction": 0.5})
+
+
+def run(*args):
+    return subprocess.run([sys.executable, "-m", "isf", *args], capture_output=True, text=True,
+                          timeout=300)
+
+
+@pytest.mark.parametrize("flags, rank", [(("--friction", "0.3"), "quality"),
+                                         (("--rank", "fit"), "fit")])
+def test_cli_rank_and_friction_write_valid_json(tmp_path, flags, rank):
+    out = tmp_path / "grasps.json"
+    proc = run("plan", "-g", "paper-parallel", "-o", "shape:cylinder", "-n", "4", "--out", str(out),
+               "--quiet", *flags)
+    assert proc.returncode == 0, proc.stderr
+    data = json.loads(out.read_text())
+    jsonschema.validate(data, json.loads(SCHEMA_PATH.read_text()))
+    assert data["ranking"]["rank"] == rank
+    records = [g["quality"] for g in data["grasps"]]
+    if rank == "fit":
+        assert data["ranking"]["quality"] is None and records == [None] * 4
+    else:
+        assert data["ranking"]["quality"]["friction"] == 0.3
+        valid = [r for r, g in zip(records, data["grasps"]) if g["valid"]]
+        assert valid and all(r["friction"] == 0.3 and set(r["gravity_margin"]) ==
+                             {"+x", "-x", "+y", "-y", "+z", "-z"} for r in valid)
+        assert np.isfinite([r["epsilon"] for r in valid]).all()
+
+
+def test_cli_rejects_negative_friction():
+    proc = run("plan", "-g", "paper-parallel", "-o", "shape:cylinder", "-n", "2", "--friction", "-1")
+    assert proc.returncode == 2
+    assert "friction" in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
