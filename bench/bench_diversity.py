@@ -3,13 +3,14 @@
 For each gripper (the bundled ``paper-parallel``, ``flat-parallel``, ``three-finger`` and the
 tagged Franka hand of ``bench_scenes.tagged_franka_hand``) and each YCB object of
 ``/work/shared/data/ycb`` (metres, as scanned), one plan of 60 samples, seed 0, is made with the
-plain ranking (``diversity=None``). Its grasps are then counted twice with the default
-:class:`isf.planning.diversity.Diversity` (1 cm, 30 degrees about the TCP, symmetry detected):
+default :class:`isf.planning.diversity.Diversity` (1 cm, 30 degrees about the TCP, symmetry
+detected), as ``isf.plan`` makes it by default, and its grasps are counted:
 
-* **before**: distinct grasps among the plain ranking's top 20 (a grasp within reach of a better
-  one among them is not counted);
-* **after**: distinct grasps among the top 20 once the distinct grasps are ranked first (what
-  ``isf.plan`` returns by default): ``min(20, distinct among all 60)``;
+* **before**: distinct grasps among the top 20 of the plain ranking (the same grasps in
+  :meth:`isf.Grasp.sort_key` order; a grasp within reach of a better one among them is not
+  counted);
+* **after**: distinct grasps among the top 20 that ``isf.plan`` returns (distinct grasps first
+  within each tier: valid, collision-free, colliding);
 * **valid after**: of those, the valid ones (collision-free, every contact surface touching);
 * **distinct / 60**: distinct grasps among all samples, the most the object allows with this run.
 
@@ -50,21 +51,20 @@ def load(name: str, folder: Path) -> isf.Gripper:
 
 
 def count(result, gripper: isf.Gripper, diversity: Diversity) -> dict:
-    """Distinct grasps of a plainly ranked plan, before and after the pass (module docstring)."""
-    grasps = result.grasps
-    T = np.array([g.T_object_gripper for g in grasps]) @ gripper.T_root_tcp
-    order = diversity.order(gripper)
-    rotations = symmetry_rotations(gripper, order)
+    """Distinct grasps of a plan made with ``diversity``, before and after its pass (module
+    docstring): the plain ranking is the plan's grasps in :meth:`isf.Grasp.sort_key` order, the
+    order :func:`isf.plan` ranks them in before the pass."""
+    plain = sorted(result.grasps, key=lambda g: g.sort_key())
+    T = np.array([g.T_object_gripper for g in plain]) @ gripper.T_root_tcp
+    rotations = symmetry_rotations(gripper, result.diversity.symmetry)
     before = distinct_first(T[:TOP], rotations, diversity.distance, diversity.angle)
-    after = distinct_first(T, rotations, diversity.distance, diversity.angle)
-    top = after.order[:TOP]
-    distinct_top = [i for i, d in zip(top, after.duplicate_of[:TOP]) if d == 0]
+    distinct_top = [g for g in result.grasps[:TOP] if g.duplicate_of is None]
     return {
-        "symmetry": order,
+        "symmetry": result.diversity.symmetry,
         "before": int(np.sum(before.duplicate_of == 0)),
         "after": len(distinct_top),
-        "valid_after": sum(grasps[i].valid for i in distinct_top),
-        "distinct_all": int(np.sum(after.duplicate_of == 0)),
+        "valid_after": sum(g.valid for g in distinct_top),
+        "distinct_all": sum(g.duplicate_of is None for g in result.grasps),
         "valid": result.stats.valid,
     }
 
@@ -90,7 +90,7 @@ def main(argv: list[str] | None = None) -> int:
             for obj_name in objects:
                 started = time.perf_counter()
                 obj = isf.load_object(YCB / f"{obj_name}.obj")
-                result = isf.plan(gripper, obj, samples=SAMPLES, seed=SEED, diversity=None)
+                result = isf.plan(gripper, obj, samples=SAMPLES, seed=SEED, diversity=diversity)
                 c = count(result, gripper, diversity)
                 totals.setdefault(name, []).append(c["after"])
                 line = (f"| {name} | {obj_name} | {c['symmetry']} | {c['before']} | {c['after']} "

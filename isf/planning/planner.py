@@ -45,7 +45,8 @@ grasps are ranked by what their contacts resist instead (:mod:`isf.quality`:
 the Ferrari-Canny epsilon, then the fitting error), ahead of the others in the order above.
 After the ranking, distinct grasps come first: a grasp within 1 cm and 30 degrees
 (about the TCP, under the gripper's symmetry) of a better one is marked ``duplicate_of`` and
-ranked after the distinct ones (:mod:`isf.planning.diversity`).
+ranked after the distinct ones of its tier (valid, other collision-free, colliding;
+:mod:`isf.planning.diversity`).
 
 Scenes: :func:`plan` takes an :class:`isf.scene.Scene` (what depth cameras saw) wherever it
 takes an object. ISF fits the scene's observed surface, unsegmented; the collision checks add
@@ -379,7 +380,7 @@ def plan(
             measured against other settings in docs/hands.md).
         progress: called after each sample as ``progress(done, total, grasp)``.
         diversity: after the ranking, grasps within this distance of a better one are marked
-            ``duplicate_of`` and ranked after the distinct ones
+            ``duplicate_of`` and ranked after the distinct ones of its tier
             (:mod:`isf.planning.diversity`; default 1 cm and 30 degrees about the TCP, the
             symmetry detected); None keeps the plain ranking.
         rank: ``"quality"`` (default) ranks the valid grasps by what their contacts resist
