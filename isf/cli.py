@@ -757,8 +757,10 @@ class _ProgressBar:
 
 
 def _verdict(grasp) -> str:
-    """``valid``, ``collides`` or ``no contact`` (collision-free, a surface not touching)."""
-    return "valid" if grasp.valid else "collides" if not grasp.collision_free else "no contact"
+    """``valid``, ``collides`` or ``no contact`` (collision-free, a surface not touching), with
+    ``=N`` for a duplicate of the grasp ranked N."""
+    verdict = "valid" if grasp.valid else "collides" if not grasp.collision_free else "no contact"
+    return verdict if grasp.duplicate_of is None else f"{verdict} ={grasp.duplicate_of}"
 
 
 def _contact_cell(grasp) -> str:
@@ -772,18 +774,22 @@ def _summary(result, top: int) -> str:
     shown = result.grasps[:top]
     surfaces = list(shown[0].fit.surface_contact) if shown else []
     width = max([10] + [len(_contact_cell(g)) for g in shown])
-    head = (f"{'rank':>4}  {'grasp':<10} {'dist mm':>8} {'misalign deg':>12} {'clear mm':>9}  "
+    head = (f"{'rank':>4}  {'grasp':<14} {'dist mm':>8} {'misalign deg':>12} {'clear mm':>9}  "
             f"{'contact %':<{width}}  {'position (m)':<26} joints")
     lines = [f"{result.gripper} on {result.object}, sampler {result.sampler}, seed {result.seed}"]
     if surfaces:
         lines.append(f"contact %: share of each surface's points touching the object "
                      f"({'/'.join(surfaces)})")
+    if any(g.duplicate_of is not None for g in shown):
+        lines.append("=N: the same grasp as the one ranked N (duplicate_of), within "
+                     f"{result.diversity.distance * 1e3:g} mm and "
+                     f"{math.degrees(result.diversity.angle):g} deg about the TCP")
     lines.append(head)
     for rank, g in enumerate(shown, start=1):
         p = g.T_object_gripper[:3, 3]
         joints = " ".join(f"{k}={v:.4g}" for k, v in g.joints.items())
         lines.append(
-            f"{rank:>4}  {_verdict(g):<10} {g.fit.mean_distance * 1e3:>8.3f} "
+            f"{rank:>4}  {_verdict(g):<14} {g.fit.mean_distance * 1e3:>8.3f} "
             f"{math.degrees(g.fit.normal_misalignment):>12.2f} {g.collision.clearance * 1e3:>9.2f}  "
             f"{_contact_cell(g):<{width}}  {p[0]:+.4f} {p[1]:+.4f} {p[2]:+.4f}     {joints}"
         )
