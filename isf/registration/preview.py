@@ -26,7 +26,7 @@ from ..output_files import check_output_path, write_atomically
 from ._urdf_source import Posed, face_normals, pose_urdf, read_urdf
 
 __all__ = ["EXPORT_FORMATS", "SurfacePreview", "TagPreview", "check_export_path", "preview_surface",
-           "preview_tagged"]
+           "preview_surfaces", "preview_tagged"]
 
 EXPORT_FORMATS = ("glb", "obj", "ply")
 """File suffixes :meth:`TagPreview.export` writes (formats that keep face colours)."""
@@ -222,18 +222,35 @@ def preview_tagged(urdf_path: str | Path, *, package_dirs: PackageDirs | None = 
     t0 = time.perf_counter()
     path, text = read_urdf(urdf_path)
     report = inspect_gripper(path, package_dirs=package_dirs) if report is None else report
+    surfaces, q_initial = preview_surfaces(text, path.parent, report, package_dirs)
+    return TagPreview(source_path=path, urdf_path=path, surfaces=surfaces, report=report,
+                      rewritten_meshes={}, namespace_added=False,
+                      q_initial=q_initial, tag_time=0.0,
+                      validation_time=time.perf_counter() - t0)
+
+
+def preview_surfaces(text: str, urdf_dir: Path, report: GripperReport,
+                     package_dirs: PackageDirs | None = None
+                     ) -> tuple[tuple[SurfacePreview, ...], dict[str, float]]:
+    """What every ``<isf:contact>`` of the tagged URDF ``text`` selects
+    (:func:`preview_surface`), and the initial joint values it is posed at ({} when the URDF
+    does not build: ``report`` says why).
+
+    Args:
+        text: the tagged URDF's text.
+        urdf_dir: its folder, for relative mesh paths.
+        report: its :func:`isf.inspect_gripper` report; problems found here are added to it.
+        package_dirs: optional ``{package: folder}`` map for ``package://`` mesh paths.
+    """
     doc = parse_tagged_urdf(text)
     try:
         posed = pose_urdf(text, doc, ())
     except ModelBuildError:
         posed = None  # the report says why
     cache: dict = {}
-    surfaces = tuple(preview_surface(tag, doc, path.parent, posed, report.problems, cache,
+    surfaces = tuple(preview_surface(tag, doc, urdf_dir, posed, report.problems, cache,
                                      package_dirs) for tag in doc.contacts)
-    return TagPreview(source_path=path, urdf_path=path, surfaces=surfaces, report=report,
-                      rewritten_meshes={}, namespace_added=False,
-                      q_initial={} if posed is None else posed.joint_values(), tag_time=0.0,
-                      validation_time=time.perf_counter() - t0)
+    return surfaces, ({} if posed is None else posed.joint_values())
 
 
 def preview_surface(

@@ -466,15 +466,7 @@ def suggest_approach(
     Raises:
         RegistrationError: as :func:`suggest_contacts`, or an unknown ``palm_link``.
     """
-    posed, tips = _fingertips(urdf_path, links, initial, package_dirs)
-    palm = palm_link or posed.doc.root_link
-    if palm not in posed.poses:
-        raise RegistrationError(
-            f"palm_link {palm!r} does not exist; links: {', '.join(posed.doc.links)}"
-        )
-    T = posed.poses[palm]
-    center = np.mean([t.centroid for t in tips], axis=0)
-    v = T[:3, :3].T @ (center - T[:3, 3])
+    palm, v = _fingertip_centre(urdf_path, palm_link, links, initial, package_dirs)
     norm = float(np.linalg.norm(v))
     if norm < 1e-6:
         raise RegistrationError(
@@ -539,6 +531,19 @@ def suggest_tcp(
     Raises:
         RegistrationError: as :func:`suggest_approach`.
     """
+    palm, centre = _fingertip_centre(urdf_path, palm_link, links, initial, package_dirs)
+    return SuggestedTCP(palm, tuple(float(round(x, 6)) for x in centre))
+
+
+def _fingertip_centre(urdf_path: str | Path, palm_link: str | None, links: Sequence[str] | None,
+                      initial: Mapping[str, float] | None, package_dirs: PackageDirs | None
+                      ) -> tuple[str, np.ndarray]:
+    """The palm link (``palm_link`` or the root link) and the centroid of the fingertips'
+    geometry at the initial configuration in its frame, metres, (3,).
+
+    Raises:
+        RegistrationError: as :func:`suggest_contacts`, or an unknown ``palm_link``.
+    """
     posed, tips = _fingertips(urdf_path, links, initial, package_dirs)
     palm = palm_link or posed.doc.root_link
     if palm not in posed.poses:
@@ -546,5 +551,4 @@ def suggest_tcp(
             f"palm_link {palm!r} does not exist; links: {', '.join(posed.doc.links)}"
         )
     T = posed.poses[palm]
-    centre = T[:3, :3].T @ (np.mean([t.centroid for t in tips], axis=0) - T[:3, 3])
-    return SuggestedTCP(palm, tuple(float(round(x, 6)) for x in centre))
+    return palm, T[:3, :3].T @ (np.mean([t.centroid for t in tips], axis=0) - T[:3, 3])

@@ -40,13 +40,13 @@ from xml.sax.saxutils import escape, unescape
 
 import numpy as np
 
-from ..exceptions import MeshNotFoundError, ModelBuildError, RegistrationError
+from ..exceptions import MeshNotFoundError, RegistrationError
 from ..gripper.loading import inspect_gripper
 from ..gripper.mesh_paths import PackageDirs, mesh_path_candidates, resolve_mesh_path
-from ..gripper.urdf_tags import ISF_NS, parse_tagged_urdf
+from ..gripper.urdf_tags import ISF_NS
 from ..output_files import check_output_path, write_atomically
-from ._urdf_source import initial_tags, parse_urdf, pose_urdf, read_urdf
-from .preview import TagPreview, preview_surface
+from ._urdf_source import initial_tags, parse_urdf, read_urdf
+from .preview import TagPreview, preview_surfaces
 from .spec import _ATTR_FLOAT, ContactSpec, _element, _format_vector, _vector
 from .suggestion import SuggestedTCP, suggest_closing
 
@@ -321,16 +321,7 @@ def tag_urdf(
     )
 
     report = inspect_gripper(dst)
-    new_doc = parse_tagged_urdf(new)
-    try:
-        posed = pose_urdf(new, new_doc, ())
-    except ModelBuildError:
-        posed = None  # the report says why
-    cache: dict = {}
-    surfaces = tuple(
-        preview_surface(tag, new_doc, dst.parent, posed, report.problems, cache)
-        for tag in new_doc.contacts
-    )
+    surfaces, q_initial = preview_surfaces(new, dst.parent, report)
     return TagPreview(
         source_path=src,
         urdf_path=dst,
@@ -338,7 +329,7 @@ def tag_urdf(
         report=report,
         rewritten_meshes=rewrites,
         namespace_added=added,
-        q_initial={} if posed is None else posed.joint_values(),
+        q_initial=q_initial,
         tag_time=t1 - t0,
         validation_time=time.perf_counter() - t1,
     )
