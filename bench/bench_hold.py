@@ -2,7 +2,7 @@
 
 For each gripper and YCB object (real size, ``asset:ycb:NAME``), one ``isf.plan`` of 60 samples
 (regret sampler, seed 0) per ranking, and the top 5 grasps simulated by
-:func:`isf.simulation.validate_grasp` (friction 0.5, 0.3 kg, fingers at 10 N: the defaults of
+:func:`isf.simulation.validate_grasp` (friction 0.5, 0.3 kg, 20 N per finger joint: the defaults of
 ``isf validate``; docs/validate.md). A grasp *holds* when the object stays within 10 mm and
 0.2 rad of its closed pose with gravity along each of +-x, +-y, +-z. Reported per gripper and
 ranking: top-1 = % of objects whose best grasp holds in all six directions; top-5 = % of the
@@ -15,7 +15,10 @@ pairs, ranked by normal alignment and distance from the centre of mass, collisio
 judged the same way, for the parallel grippers and the Franka hand.
 
 Grippers: ``paper-parallel``, ``flat-parallel``, ``three-finger`` (bundled), ``franka-hand``
-(the vendor hand with one contact tag per finger pad, as bench/bench_scenes.py tags it).
+(the vendor hand with one contact tag per finger pad, as bench/bench_scenes.py tags it), and
+``paper-parallel-scaled``: ``paper-parallel`` (2.3 cm opening, which no YCB object fits at real
+size) on each object scaled uniformly so that its smallest principal width is
+``SCALED_FILL`` of the opening (the same 0.3 kg: only the geometry is scaled).
 
 Run from the repository root:
     python bench/bench_hold.py [--quick] [--grippers paper-parallel,franka-hand]
@@ -40,8 +43,11 @@ import isf
 from isf.simulation import SimulationSettings, object_body, validate_grasp
 
 SAMPLES, SEED, TOP, FRICTION = 60, 0, 5, 0.5
-GRIPPERS = ("paper-parallel", "flat-parallel", "three-finger", "franka-hand")
-PARALLEL = ("paper-parallel", "flat-parallel", "franka-hand")
+GRIPPERS = ("paper-parallel", "paper-parallel-scaled", "flat-parallel", "three-finger",
+            "franka-hand")
+PARALLEL = ("paper-parallel", "paper-parallel-scaled", "flat-parallel", "franka-hand")
+SCALED = "-scaled"
+SCALED_FILL = 0.6
 OBJECTS = ("Banana", "CrackerBox", "FoamBrick", "GelatinBox", "MasterChefCan", "MustardBottle",
            "PottedMeatCan", "PowerDrill", "Scissors", "TomatoSoupCan")
 TARGETS = {"three-finger": (0.90, 0.80)}  # (top-1, top-5); the others: (0.95, 0.90)
@@ -53,11 +59,22 @@ def meets(value: float, target: float) -> str:
 
 
 def load(name: str, folder: Path) -> isf.Gripper:
+    name = name.removesuffix(SCALED)
     if name == "franka-hand":
         import bench_scenes
 
         return bench_scenes.tagged_franka_hand(folder)
     return isf.load_gripper(name)
+
+
+def scaled_object(gripper: isf.Gripper, spec: str):
+    """The object of ``spec`` scaled so that its smallest principal width is ``SCALED_FILL`` of
+    the gripper's largest opening (never enlarged), and the scale."""
+    from isf.planning.span import gripper_span, object_extent
+
+    scale = min(1.0, SCALED_FILL * gripper_span(gripper).largest
+                / object_extent(isf.open_object(spec)).smallest)
+    return isf.open_object(spec, scale=scale), scale
 
 
 def rankings() -> tuple[str, ...]:
@@ -110,9 +127,13 @@ def main() -> None:
     with tempfile.TemporaryDirectory(prefix="isf-bench-hold-") as folder:
         loaded = {} if args.from_raw else {name: load(name, Path(folder)) for name in grippers}
         for obj_name in [] if args.from_raw else objects:
-            obj = isf.open_object(f"asset:ycb:{obj_name}")
-            body = object_body(obj.mesh_vertices, obj.mesh_faces, settings.mass)
+            real = isf.open_object(f"asset:ycb:{obj_name}")
+            real_body = object_body(real.mesh_vertices, real.mesh_faces, settings.mass)
             for name, gripper in loaded.items():
+                obj, body, scale = real, real_body, 1.0
+                if name.endswith(SCALED):
+                    obj, scale = scaled_object(gripper, f"asset:ycb:{obj_name}")
+                    body = object_body(obj.mesh_vertices, obj.mesh_faces, settings.mass)
                 methods = list(rankings())
                 if plan_antipodal is not None and name in PARALLEL:
                     methods.append("antipodal")
@@ -126,6 +147,7 @@ def main() -> None:
                     outcomes = [validate_grasp(gripper, body, T, q, settings)
                                 for T, q in candidates(method, gripper, obj, plan_antipodal)]
                     rows.append({"gripper": name, "method": method, "object": obj_name,
+                                 "scale": scale,
                                  "outcomes": [v.outcome.value for v in outcomes],
                                  "held_directions": [v.held_directions for v in outcomes],
                                  "seconds": time.perf_counter() - t0})

@@ -76,7 +76,7 @@ def _parser() -> argparse.ArgumentParser:
                         "1 otherwise)")
     p.add_argument("--cloud-frame", choices=("camera", "scene"), default="camera",
                    help="the frame of a --scene point cloud's coordinates (default camera)")
-    p.add_argument("--samples", "-n", type=int, default=60, help="samples to evaluate (default 60)")
+    p.add_argument("--samples", "-n", type=int, default=60, help="samples to evaluate (default 60, at most 100000)")
     p.add_argument("--sampler", "-s", default="regret", help="sampler name (default regret; see 'isf samplers')")
     p.add_argument("--sampler-param", action="append", default=[], metavar="KEY=VALUE",
                    help="a parameter of the sampler, checked by the sampler itself, e.g. "
@@ -87,7 +87,7 @@ def _parser() -> argparse.ArgumentParser:
                    help="samples fitted at once in lockstep (default: isf.plan's, one at a time: "
                         "the paper's sequential loop)")
     p.add_argument("--workers", "-j", type=int, default=1, metavar="W",
-                   help="threads that fit, check and repair samples side by side (default 1); the "
+                   help="threads that fit, check and repair samples side by side (default 1, at most 256); the "
                         "sampler then learns each outcome up to 2W-1 samples late")
     p.add_argument("--fit", action="append", default=[], metavar="KEY=VALUE",
                    help="a parameter of ISF (isf.FitConfig), e.g. tolerance=0.016 (repeatable; "
@@ -126,8 +126,9 @@ def _parser() -> argparse.ArgumentParser:
                    help="keep the plain ranking: no grasp is marked duplicate_of")
     p.add_argument("--rank", choices=("quality", "fit"), default="quality",
                    help="rank valid grasps by what their contacts resist (quality, default: holding "
-                        "the object's weight in six gravity directions, then the Ferrari-Canny "
-                        "epsilon, then the fitting error; docs/quality.md) or by fitting error "
+                        "the object's weight in six gravity directions, then contacts nearest the "
+                        "centre of mass, then the Ferrari-Canny epsilon, then the fitting error; "
+                        "docs/quality.md) or by fitting error "
                         "alone (fit, the paper's ranking)")
     p.add_argument("--friction", type=float, default=0.5, metavar="MU",
                    help="Coulomb friction coefficient of the contacts for --rank quality "
@@ -335,10 +336,15 @@ def _cmd_plan(args: argparse.Namespace) -> int:
             raise InvalidInputError(f"--top must be >= 1, got {args.top}")
         if args.seed < 0:
             raise InvalidInputError(f"--seed must be >= 0, got {args.seed}")
-        for flag, value in (("--samples", args.samples), ("--batch-size", args.batch_size),
-                            ("--workers", args.workers)):
+        from .planning.planner import MAX_SAMPLES, MAX_WORKERS
+
+        for flag, value, limit in (("--samples", args.samples, MAX_SAMPLES),
+                                   ("--batch-size", args.batch_size, None),
+                                   ("--workers", args.workers, MAX_WORKERS)):
             if value < 1:
                 raise InvalidInputError(f"{flag} must be >= 1, got {value}")
+            if limit is not None and value > limit:
+                raise InvalidInputError(f"{flag} must be at most {limit}, got {value}")
         if args.batch_size > 1 and args.workers > 1:
             raise InvalidInputError("--batch-size and --workers cannot both exceed 1: choose lockstep "
                                     "batches or worker threads")

@@ -9,9 +9,9 @@ a kernel at its first call and caches the machine code on disk (in the package's
 ``__pycache__`` folders, or in numba's user cache when those are read-only;
 ``NUMBA_CACHE_DIR`` moves it; :mod:`isf.compiled.cache` drops cached kernels whose sources
 changed, or the sources of the modules they use, and those it cannot load). So the first
-run after installing or upgrading isf compiles them (about 100 s of CPU for the engine's
-kernels and 90 s for the checks' and the repair's, compiled side by side on a machine with two
-cores: docs/benchmarks.md, "First run"), and later runs load them in about a second.
+run after installing or upgrading isf compiles them (about 60 s of CPU for the engine's
+kernels and as much for the checks' and the repair's, compiled side by side on a machine with
+two cores: docs/benchmarks.md, "First run"), and later runs load them in about a second.
 
 :func:`warm_up` compiles (or loads) every kernel on tiny inputs of the types the engine
 passes, so that the cost lands where the caller wants it: ``isf plan`` calls it before
@@ -224,11 +224,12 @@ def _warm_engine() -> None:
 
 
 def _warm_checks() -> None:
-    """The kernels of the collision checks and the repair."""
+    """The kernels of the collision checks and the repair, after the compiled kinematics
+    (which the engine's part needs only once its k-d tree is built: it then loads them from the
+    cache). Those that need no k-d tree come first: the engine's part builds one at once, and
+    its compiled build is then in the cache when this part needs it."""
+    _tiny_gripper().link_kinematics_many(np.zeros((1, 1)))
     points = np.random.default_rng(0).uniform(-0.01, 0.01, (50, 3))
-    search = NearestPoints(points, graph=True)  # the graph's neighbour lists, sorted
-    search.query_k(points[:2], 6)
-    search.query_within(points[:2], 0.01)  # a bounded search
     box = trimesh.creation.box(extents=(0.01, 0.01, 0.01))
     ConvexElements([(box.vertices, box.faces)], np.zeros(1), np.zeros(1)).rows(
         np.eye(4), np.eye(3)[None], np.zeros((1, 3)), PointGrid(points, 0.004), 0.003, 12)
@@ -237,9 +238,13 @@ def _warm_checks() -> None:
     undecided(one, element, one, element, 1, 0.008, 12, 1e-12)
     voxels = SurfaceVoxels(box.vertices, box.faces)  # the collision checks' voxels
     voxels.clear(box.vertices, box.vertices), voxels.distance_below(box.vertices)
+    search = NearestPoints(points, graph=True)  # the graph's neighbour lists, sorted
+    search.query_k(points[:2], 6)
+    search.query_within(points[:2], 0.01)  # a bounded search
     _check_collisions()
 
 
 _PARTS = (_warm_engine, _warm_checks)
-"""The warm-up's parts, each compiling kernels the others do not need: with a worker per
-extra core, the first runs in this process and the last ones in the workers."""
+"""The warm-up's parts: with a worker per extra core, the first runs in this process and the
+last ones in the workers. Where two parts use a kernel, one compiles it before the other needs
+it, which then loads it from the cache: no kernel is compiled twice."""

@@ -135,3 +135,14 @@ def test_quality_config_rejects_bad_values():
         QualityConfig(mass=0.0)
     with pytest.raises(isf.InvalidInputError, match="cone_edges"):
         QualityConfig(cone_edges=2)
+
+
+def test_com_offset_is_the_contacts_centroid_distance_from_the_centre_of_mass():
+    """The same two pads, their centroid at the origin: 0 from a centre of mass there; moved
+    2 cm along y, 2 cm (the ranking's second criterion, docs/quality.md)."""
+    contacts = antipodal_patches()
+    centred = contacts_quality(contacts, ObjectProperties(ORIGIN, 0.05))
+    shifted = contacts_quality(contacts, ObjectProperties(np.array([0.0, 0.02, 0.0]), 0.05))
+    assert centred.com_offset == pytest.approx(0.0, abs=1e-12)
+    assert shifted.com_offset == pytest.approx(0.02)
+    assert centred.to_dict()["com_offset"] == centred.com_offset

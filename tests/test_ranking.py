@@ -31,7 +31,7 @@ def test_quality_ranking_puts_resisting_grasps_first(plans, paper_gripper, cylin
     keys = [g.sort_key() for g in by_fit.grasps]
     assert keys == sorted(keys)
     # independently recomputed: no valid grasp holds better than the top one, and among those
-    # that hold as well, none has a larger epsilon
+    # that hold as well, none has its contacts nearer the centre of mass
     properties = object_properties(cylinder)
     recomputed = [grasp_quality(paper_gripper, cylinder, g.T_object_gripper, g.q,
                                 by_quality.quality, properties)
@@ -40,8 +40,12 @@ def test_quality_ranking_puts_resisting_grasps_first(plans, paper_gripper, cylin
     held = [min(q.min_margin, MARGIN_TARGET) for q in recomputed]
     best = by_quality.best.quality
     assert min(best.min_margin, MARGIN_TARGET) == pytest.approx(max(held))
-    ties = [q.epsilon for q, h in zip(recomputed, held) if h == pytest.approx(max(held))]
-    assert best.epsilon == pytest.approx(max(ties))
+    ties = [q for q, h in zip(recomputed, held) if h == pytest.approx(max(held))]
+    assert best.com_offset == pytest.approx(min(q.com_offset for q in ties))
+    centroid = isf.quality.grasp_contacts(
+        paper_gripper, cylinder, by_quality.best.T_object_gripper, by_quality.best.q,
+        by_quality.quality.contact_model).points.mean(axis=0)
+    assert best.com_offset == pytest.approx(np.linalg.norm(centroid - properties.center_of_mass))
 
 
 def test_friction_changes_the_quality(paper_gripper, cylinder):

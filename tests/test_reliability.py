@@ -75,6 +75,8 @@ def test_an_unexpected_error_exits_3_with_one_line_and_the_traceback_only_with_v
     (["--fit", "tolerance=inf"], "FitConfig.tolerance"),
     (["--repair", "object_spacing=1e-12"], "RepairConfig.object_spacing"),
     (["--out", "."], "is a folder"),
+    (["--samples", "10000000000"], "--samples must be at most"),
+    (["--workers", "100000"], "--workers must be at most"),
 ])
 def test_bad_numbers_and_outputs_are_refused_before_planning(tmp_path, args, message):
     proc = run("plan", "-g", "paper-parallel", "-o", "shape:cylinder", "-n", "2",
@@ -91,6 +93,10 @@ def test_api_arguments_of_the_wrong_type_raise_isf_errors():
             isf.plan(gripper, obj, samples=1, seed=seed)
     with pytest.raises(InvalidInputError, match="config must be an isf.FitConfig"):
         isf.plan(gripper, obj, samples=1, config={"tolerance": 0.01})
+    with pytest.raises(InvalidInputError, match="samples must be at most .*isf batch"):
+        isf.plan(gripper, obj, samples=10**10)
+    with pytest.raises(InvalidInputError, match="workers must be at most"):
+        isf.plan(gripper, obj, samples=1, workers=10**5)
     T = np.eye(4)
     with pytest.raises(InvalidInputError, match="obj must be an isf.ObjectSurface"):
         isf.fit(gripper, obj.points, T)

@@ -2,9 +2,11 @@
 
 Ground truth is analytic: a box squeezed between parallel pads at its centre holds; a tapered
 prism whose faces lean out of the friction cone (tan(alpha) > mu) is squeezed out, one that
-leans inside it holds; a grasp that sinks the pads into the object is flagged; and a box on a
+leans inside it holds; a grasp that sinks the pads into the object is flagged; a box on a
 plane tilted below / above atan(mu) stays / slides, which shows the friction MuJoCo applies is
-the coefficient set.
+the coefficient set; the pads press the object with the actuator's force bound; and a box held
+off its centre of mass turns about the pads' axis only when the gravity torque exceeds what
+the pads' friction over their contact patch can resist.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ import importlib
 import importlib.util
 import json
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -26,7 +29,7 @@ from isf.cli import main
 from isf.exceptions import InvalidInputError
 from isf.planning.plan_json import SCHEMA_PATH
 from isf.simulation import Outcome, SimulationSettings, object_body, validate_grasp
-from isf.simulation.world import physics_spec
+from isf.simulation.world import build_world, physics_spec
 
 #: flat-parallel's pads: centre at z = 0.08 m of the gripper frame, 20 mm tall, at y = +-q.
 PAD_CENTRE = np.array([0.0, 0.0, 0.08])
@@ -216,3 +219,80 @@ def test_tag_suggests_the_franka_hands_closing_sign(tmp_path):
     assert preview.ok
     assert '<isf:closing joint="finger_joint1" sign="-1"/>' in preview.urdf_path.read_text()
     assert isf.load_gripper(preview.urdf_path).closing == {"finger_joint1": -1.0}
+
+
+def test_the_pads_press_with_the_actuators_force_bound(flat_parallel):
+    """One prismatic joint drives both pads (the other follows as its mimic): by virtual work
+    the normal forces of the two pads sum to the joint's force bound, ``finger_force``."""
+    import mujoco
+
+    from isf.simulation.grasp_test import _set_joints
+
+    settings = SimulationSettings()
+    width = 0.04
+    world = build_world(flat_parallel, _box(width), _T_object_gripper(), np.array([width / 2]),
+                        settings)
+    data = mujoco.MjData(world.model)
+    _set_joints(world, data.qpos, np.array([width / 2 + settings.open_prismatic]))
+    data.ctrl[:] = width / 2 - settings.squeeze_prismatic
+    for _ in range(600):
+        mujoco.mj_step(world.model, data)
+    force, normal = np.zeros(6), 0.0
+    for k in range(data.ncon):
+        mujoco.mj_contactForce(world.model, data, k, force)
+        normal += force[0]
+    assert normal == pytest.approx(settings.finger_force, rel=0.05)
+    assert data.ncon >= 6  # several points per pad (multiccd), not one
+
+
+@pytest.mark.parametrize("load, turns", [(0.9, False), (1.5, True)])
+def test_an_off_centre_grasp_turns_only_above_the_pads_friction_torque(flat_parallel, load, turns):
+    """A 12 cm box squeezed by the 2 x 2 cm pads 4 cm from its centre of mass, gravity along
+    -z: a torque m g d about the pads' normal. Each pad presses N = finger_force / 2 (one joint
+    drives both). With uniform pressure over a square of half-side a, a pad resists a torque
+    mu N a c (c = (sqrt 2 + ln(1 + sqrt 2)) / 3) and, alone, a force mu N; the limit surface is
+    convex, so loads with F / (2 mu N) + T / (2 mu N a c) <= 1 hold whatever the pressure
+    between uniform and corner-only. No pressure distribution resists more than the corners do,
+    2 mu N a sqrt 2. The box of mass ``load`` times the lower bound holds; of ``load`` times the
+    upper one it turns."""
+    import trimesh
+
+    mu, d, a, g = 0.5, 0.04, 0.01, 9.81
+    settings = SimulationSettings(friction=mu)
+    N = settings.finger_force / 2
+    c = (math.sqrt(2) + math.log(1 + math.sqrt(2))) / 3
+    holds_below = 1.0 / (g * (1 / (2 * mu * N) + d / (2 * mu * N * a * c)))  # kg
+    turns_above = 2 * mu * N * a * math.sqrt(2) / (g * d)  # kg
+    mass = load * (turns_above if turns else holds_below)
+    mesh = trimesh.creation.box(extents=(0.12, 0.04, 0.03))
+    T = _T_object_gripper()
+    T[0, 3] = d
+    result = validate_grasp(flat_parallel, object_body(mesh.vertices, mesh.faces, mass), T,
+                            np.array([0.02]), replace(settings, mass=mass))
+    vertical = [r for r in result.directions if r.direction in ("+z", "-z")]
+    assert len(vertical) == 2, result
+    if turns:
+        assert all(r.outcome is Outcome.SLIPPED and r.rotation > settings.slip_angle
+                   for r in vertical), result
+    else:
+        assert result.outcome is Outcome.HELD, result
+
+
+def test_a_grooved_fingertip_is_simulated_as_convex_parts_not_its_hull():
+    """paper-parallel's fingertip is concave (a groove): MuJoCo would collide its hull, which
+    fills the groove the object sits in. Its convex parts must enclose about the mesh's own
+    volume (trimesh, independent of CoACD), far less than the hull's; a box stays one part."""
+    import trimesh
+
+    from isf.simulation.object_body import convex_parts
+
+    tips = [g for g in isf.load_gripper("paper-parallel").geometries
+            if len(g.vertices) > 8 and trimesh.Trimesh(g.vertices, g.faces).is_watertight]
+    assert tips
+    mesh = trimesh.Trimesh(tips[0].vertices, tips[0].faces)
+    assert mesh.volume < 0.7 * mesh.convex_hull.volume
+    parts = convex_parts(tips[0].vertices, tips[0].faces)
+    enclosed = sum(trimesh.convex.convex_hull(v).volume for v, _ in parts)
+    assert enclosed == pytest.approx(mesh.volume, rel=0.15)
+    box = trimesh.creation.box(extents=(0.02, 0.01, 0.03))
+    assert len(convex_parts(box.vertices, box.faces)) == 1

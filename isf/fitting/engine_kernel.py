@@ -29,6 +29,13 @@ alike) (:func:`isf.search.nearest.nearest_point`): on the object's Delaunay grap
 (:mod:`isf.search._neighbour_graph`) a walk of a step or two, since an ISF iteration moves a contact
 point by about one object point spacing or less; without a graph the k-d tree, bounded by
 that point's distance. The answers are those of :class:`isf.search.nearest.NearestPoints`.
+
+Literal constants
+-----------------
+numba types an integer constant passed to a compiled callee as a literal (``Literal[int](0)``)
+and compiles the callee once more for it, beside the ``int64`` version that Python callers
+and loop variables use. The calls below that pass a start of 0 pass ``np.int64(0)`` instead:
+one compiled version of each callee, the same machine arithmetic, a shorter first run.
 """
 
 from __future__ import annotations
@@ -327,7 +334,7 @@ def _match(points, normals, rows, count, grip, obj, fit_params, last, dist, targ
             compatible[i] = row_dot(normals, i, obj_normals, target[i]) <= cos_limit
         else:
             compatible[i] = True
-    a = 0
+    a = np.int64(0)  # typed, not a literal 0: see the module docstring, "Literal constants"
     while a < count:  # outlier groups: runs of one contact surface, or the whole fit
         b = a + 1
         if per_surface:
@@ -340,7 +347,7 @@ def _match(points, normals, rows, count, grip, obj, fit_params, last, dist, targ
     if fit_params.reject_duplicates:
         stamp = work.stamp
         stamp[-1] += 1  # a fresh tag (the last entry counts calls; no object point uses it)
-        reject_duplicate_targets(dist, target, 0, count, keep, work.best_row, stamp, stamp[-1])
+        reject_duplicate_targets(dist, target, np.int64(0), count, keep, work.best_row, stamp, stamp[-1])
     kept = 0
     for i in range(count):
         kept += keep[i]
@@ -428,7 +435,7 @@ def _prepare(slots, grip, obj, fit_params, ipfo_params, work):
     kept_rows = np.empty((n_slots, n_points), np.int64)
     kept_targets = np.empty((n_slots, n_points), np.int64)
     n_pairs = np.zeros(n_slots, np.int64)
-    n_fits = 0
+    n_fits = np.int64(0)  # typed, not a literal 0: see the module docstring, "Literal constants"
     for b in range(n_slots):
         if status[b] != RUNNING:
             continue
@@ -599,7 +606,7 @@ def run(slots, history, grip, obj, fit_params, ipfo_params, max_rounds):
         record_start(slots, history, pairs, state)
         ended = 0
         if len(pairs.fits):
-            request = alternate(state, moments, ipfo_params, 0, no_answer(state))
+            request = alternate(state, moments, ipfo_params, np.int64(0), no_answer(state))
             if request.status != DONE:
                 return Round(PENDING, r, pairs, state, moments, request)
             ended = finish_round(slots, history, grip, fit_params, pairs, state)

@@ -66,6 +66,7 @@ def _grasp_to_dict(rank: int, grasp: Grasp) -> dict:
         "valid": bool(grasp.valid),
         "pieces": grasp.pieces,
         "repaired": bool(grasp.repaired),
+        "settled": grasp.settled,
         "quality": None if grasp.quality is None else grasp.quality.to_dict(),
         "convergence": _convergence(fit),
     }

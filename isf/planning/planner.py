@@ -38,20 +38,24 @@ surfaces, and the links behind them can end inside the object.
 
 Ranking: collision-free grasps first, then grasps whose every contact surface
 touches the object, then (on a scene) grasps that rest on one piece of the scene's surface
-rather than on several (:mod:`isf.scene.segments`), then by mean point-to-plane distance
+rather than on several (:mod:`isf.scene.segments`), then (on a scene) the grasps settled within
+the scene's contact allowance (:mod:`isf.scene.settle`), then by mean point-to-plane distance
 (lower first): the paper's ranking, ``rank="fit"``. By default (``rank="quality"``) the valid
 grasps are ranked by what their contacts resist instead (:mod:`isf.quality`:
 :func:`isf.quality.grasp_quality.quality_rank_key`: holding their weight in every gravity direction first, then
-the Ferrari-Canny epsilon, then the fitting error), ahead of the others in the order above.
+contacts nearest the centre of mass, then the Ferrari-Canny epsilon, then the fitting error),
+ahead of the others in the order above.
 After the ranking, distinct grasps come first: a grasp within 1 cm and 30 degrees
 (about the TCP, under the gripper's symmetry) of a better one is marked ``duplicate_of`` and
-ranked after the distinct ones of its tier (valid, other collision-free, colliding;
+ranked after the distinct ones of its tier (valid and settled, valid but unsettled, other
+collision-free, colliding;
 :mod:`isf.planning.diversity`).
 
 Scenes: :func:`plan` takes an :class:`isf.scene.Scene` (what depth cameras saw) wherever it
 takes an object. ISF fits the scene's observed surface, unsegmented; the collision checks add
 the scene's table to the obstacles and its unseen space (:mod:`isf.scene.unseen`) as a region
-no link may enter; the object frame of the results is the scene frame.
+no link may enter; each collision-free grasp is then settled out of the observed surface by what
+its noise could hide (:mod:`isf.scene.settle`); the object frame of the results is the scene frame.
 """
 
 from __future__ import annotations
@@ -79,6 +83,7 @@ from ..repair.clearance import RepairConfig
 from ..result import FitResult, FitStatus
 from ..samplers import Outcome, Proposal, Sampler, get_sampler
 from ..scene.loading import Scene
+from ..scene.settle import Settler
 from ._evaluation import LockstepEvaluations, SampleJudge, SampleWorker, ThreadedEvaluations
 from ._working_surface import resolve_spacing, working_surface
 from .diversity import DEFAULT_DIVERSITY, Diversity, distinct_first, symmetry_rotations
@@ -115,6 +120,11 @@ class Grasp:
             (:func:`isf.repair.clearance.repair_penetration`): then ``fit`` is the repaired
             grasp, whose ``history`` is the ISF fit's and ends before the repair moved it (the
             last record's joints are not the grasp's).
+        settled: on a scene, True when the grasp was settled within the scene's contact
+            allowance (:mod:`isf.scene.settle`: then ``fit`` and ``collision`` are the settled
+            state's), False when a collision-free grasp could not be (it keeps its planned
+            state and ranks after the settled ones); None on an object or for a grasp that
+            collides.
         duplicate_of: the rank (from 1) of the better grasp this one repeats (within the
             run's :class:`isf.planning.diversity.Diversity`), or None for a distinct grasp.
         quality: what its contacts resist (:func:`isf.quality.grasp_quality.grasp_quality`), computed for
@@ -127,6 +137,7 @@ class Grasp:
     sample_index: int
     pieces: int | None = None
     repaired: bool = False
+    settled: bool | None = None
     duplicate_of: int | None = None
     quality: GraspQuality | None = None
 
@@ -169,15 +180,16 @@ class Grasp:
         return self.collision.collision_free and self.in_contact and self.one_piece
 
     def sort_key(self) -> tuple:
-        """Ranking key: collision-free, then :attr:`in_contact`, then one piece, then mean
-        distance; for a grasp with a :attr:`quality` record (a plan ranked by quality),
+        """Ranking key: collision-free, then :attr:`in_contact`, then one piece, then settled
+        (on a scene), then mean distance; for a grasp with a :attr:`quality` record (a plan ranked by quality),
         :func:`isf.quality.grasp_quality.quality_rank_key` (quality, then mean distance) instead of the mean
         distance."""
         if self.quality is None:
             return (not self.collision_free, not self.in_contact, not self.one_piece,
-                    self.fit.mean_distance, self.sample_index)
+                    self.settled is False, self.fit.mean_distance, self.sample_index)
         return (not self.collision_free, not self.in_contact, not self.one_piece,
-                *quality_rank_key(self.quality, self.fit.mean_distance), self.sample_index)
+                self.settled is False, *quality_rank_key(self.quality, self.fit.mean_distance),
+                self.sample_index)
 
 
 @dataclass(frozen=True)
@@ -270,7 +282,8 @@ def _distinct_first(grasps: list[Grasp], gripper: Gripper, diversity: Diversity)
     if not grasps:
         return grasps
     T_object_tcp = np.array([g.T_object_gripper for g in grasps]) @ gripper.T_root_tcp
-    tiers = np.array([0 if g.valid else 1 if g.collision_free else 2 for g in grasps])
+    tiers = np.array([(0 if g.settled is not False else 1) if g.valid else 2 if g.collision_free
+                      else 3 for g in grasps])
     order, duplicate_of = distinct_first(
         T_object_tcp, symmetry_rotations(gripper, int(diversity.symmetry)), diversity.distance,
         diversity.angle, tiers)
@@ -306,6 +319,14 @@ def _slots(sampler: Sampler, batch_size: int) -> int:
     return batch_size if limit is None else max(1, min(batch_size, int(limit)))
 
 
+MAX_SAMPLES = 100_000
+"""The most samples one :func:`plan` takes: its grasps (with their fit histories) stay in memory;
+a larger run is many plans (``isf batch``)."""
+
+MAX_WORKERS = 256
+"""The most worker threads one :func:`plan` starts (threads beyond the machine's cores only wait)."""
+
+
 def _check_arguments(samples, batch_size, workers, repair_collisions, seed=None,
                      config=None) -> None:
     """Raise InvalidInputError for the arguments of :func:`plan` it rejects (see there)."""
@@ -321,6 +342,11 @@ def _check_arguments(samples, batch_size, workers, repair_collisions, seed=None,
     for name, value in (("samples", samples), ("batch_size", batch_size), ("workers", workers)):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
             raise InvalidInputError(f"{name} must be a positive integer, got {value!r}")
+    for name, value, limit, fix in (
+            ("samples", samples, MAX_SAMPLES, "split the run into several plans (isf batch)"),
+            ("workers", workers, MAX_WORKERS, "use at most one worker per core")):
+        if value > limit:
+            raise InvalidInputError(f"{name} must be at most {limit}, got {value}: {fix}")
     if workers > 1 and batch_size > 1:
         raise InvalidInputError(f"batch_size={batch_size} and workers={workers}: choose lockstep "
                                 "batches or worker threads, not both (set one of them to 1)")
@@ -360,7 +386,7 @@ def plan(
         gripper: a :class:`Gripper`, a bundled gripper name or a URDF path.
         obj: an :class:`ObjectSurface`, a mesh or point-cloud path, an (N, 3)/(N, 6) array
             (metres), or an :class:`isf.scene.Scene` (see the module docstring).
-        samples: number of samples ``K_s`` to evaluate.
+        samples: number of samples ``K_s`` to evaluate, at most 100 000 (``isf.planning.planner.MAX_SAMPLES``).
         sampler: a registered sampler name (see :func:`isf.available_samplers`), class or instance.
         seed: seed of the run's random generator; the same seed gives the same result.
         config: ISF parameters; default the paper's.
@@ -370,7 +396,8 @@ def plan(
         batch_size: samples fitted at once in lockstep, in one thread (see the module
             docstring); 1 is the paper's loop.
         workers: threads that fit, check and repair samples side by side (see the module
-            docstring); 1 (default) plans in the calling thread. Exclusive with ``batch_size > 1``.
+            docstring); 1 (default) plans in the calling thread; at most 256 (``isf.planning.planner.MAX_WORKERS``).
+            Exclusive with ``batch_size > 1``.
         repair_collisions: when a fitted grasp collides, run
             :func:`isf.repair.clearance.repair_penetration` on it (links pushed out of the object
             and obstacles while the contact surfaces are pulled back onto the object) and keep
@@ -394,7 +421,8 @@ def plan(
 
     Raises:
         InvalidInputError: ``samples``, ``batch_size`` or ``workers`` is not a positive
-            integer, ``seed`` is neither None nor an integer >= 0, ``config`` is not a
+            integer, ``samples`` or ``workers`` is above its limit, ``seed`` is neither None
+            nor an integer >= 0, ``config`` is not a
             :class:`FitConfig`, both ``batch_size`` and ``workers`` exceed 1, ``repair_collisions`` is
             neither a bool nor a :class:`isf.RepairConfig`,
             ``working_spacing`` is neither "auto", None nor a spacing > 0, or the
@@ -426,15 +454,20 @@ def plan(
     sampler.reset(obj, gripper, rng)  # line 2: the sampler's state (centres, regret, trials)
     options = dict(obstacles=obstacles, tolerance=collision_tolerance, repair=repair_collisions,
                    hidden=None if scene is None else scene.unseen)
+    settler = None if scene is None else Settler(gripper, obj, scene, config, obstacles=obstacles,
+                                                 tolerance=collision_tolerance)
 
     grasps: list[Grasp] = []
 
     def record(index: int, proposal: Proposal, result: FitResult, report: CollisionReport,
                repaired: bool) -> Outcome:
         """Keep a sample's grasp and return its outcome for the sampler."""
+        settled = None
+        if settler is not None:
+            result, report, settled = settler.settle(result, report)
         pieces = None if scene is None else scene.segments.touched(
             gripper, result.T_object_gripper, result.q, config.contact_distance)
-        grasp = Grasp(result, report, dict(proposal.record), index, pieces, repaired)
+        grasp = Grasp(result, report, dict(proposal.record), index, pieces, repaired, settled)
         grasps.append(grasp)
         if progress is not None:
             progress(len(grasps), samples, grasp)

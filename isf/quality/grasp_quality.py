@@ -8,9 +8,11 @@ Ferrari-Canny epsilon, force closure and the largest gravity load per direction
 
 Ranking (:func:`quality_rank_key`, the planner's default ``rank="quality"``): grasps that resist
 their weight in every gravity direction (smallest margin >= :data:`MARGIN_TARGET`) tie on the
-first criterion; the others follow, higher smallest margin first. Then higher epsilon first, then
-the fitting error (mean point-to-plane distance) breaks the remaining ties (e.g. among grasps
-with epsilon 0).
+first criterion; the others follow, higher smallest margin first. Then the grasp whose contacts'
+centroid lies nearer the centre of mass first (:attr:`GraspQuality.com_offset`: the smaller the
+gravity torques it must resist, the less its hold depends on the contact model's torsion, which
+corner contacts overstate for a real pad, and on the mass distribution), then higher epsilon,
+then the fitting error (mean point-to-plane distance).
 """
 
 from __future__ import annotations
@@ -113,6 +115,8 @@ class GraspQuality:
         contacts: point contacts of the contact model.
         patches: contact patches.
         radius: the object radius torques were divided by, metres.
+        com_offset: distance from the centroid of the contacts to the centre of mass, metres
+            (the object radius when there are no contacts).
     """
 
     friction: float
@@ -123,6 +127,7 @@ class GraspQuality:
     contacts: int
     patches: int
     radius: float
+    com_offset: float
 
     @property
     def min_margin(self) -> float:
@@ -139,7 +144,8 @@ class GraspQuality:
         return {"friction": self.friction, "epsilon": self.epsilon,
                 "force_closure": self.force_closure, "gravity_load": dict(self.gravity_load),
                 "gravity_margin": dict(self.gravity_margin), "min_margin": self.min_margin,
-                "contacts": self.contacts, "patches": self.patches, "radius": self.radius}
+                "contacts": self.contacts, "patches": self.patches, "radius": self.radius,
+                "com_offset": self.com_offset}
 
 
 def contacts_quality(contacts: Contacts, properties: ObjectProperties,
@@ -160,7 +166,9 @@ def contacts_quality(contacts: Contacts, properties: ObjectProperties,
         friction=float(config.friction), epsilon=space.epsilon, force_closure=space.force_closure,
         gravity_load={n: float(v) for n, v in zip(SIX_DIRECTIONS, loads)},
         gravity_margin={n: float(v / weight) for n, v in zip(SIX_DIRECTIONS, loads)},
-        contacts=contacts.count, patches=contacts.patches, radius=float(radius))
+        contacts=contacts.count, patches=contacts.patches, radius=float(radius),
+        com_offset=float(np.linalg.norm(contacts.points.mean(axis=0) - center))
+        if contacts.count else float(radius))
 
 
 def grasp_quality(gripper: Gripper, obj: ObjectSurface, T_object_gripper: np.ndarray,
@@ -177,8 +185,11 @@ def grasp_quality(gripper: Gripper, obj: ObjectSurface, T_object_gripper: np.nda
 
 
 def quality_rank_key(quality: GraspQuality | None, mean_distance: float) -> tuple:
-    """Sort key (lower first) of a grasp by its quality, then its fitting error ``mean_distance``
-    (metres); a grasp without a quality record (None) comes after every grasp with one."""
+    """Sort key (lower first) of a grasp by its quality (smallest gravity margin up to
+    :data:`MARGIN_TARGET`, then :attr:`GraspQuality.com_offset`, then epsilon), then its fitting
+    error ``mean_distance`` (metres); a grasp without a quality record (None) comes after every
+    grasp with one."""
     if quality is None:
-        return (1, 0.0, 0.0, mean_distance)
-    return (0, -min(quality.min_margin, MARGIN_TARGET), -quality.epsilon, mean_distance)
+        return (1, 0.0, 0.0, 0.0, mean_distance)
+    return (0, -min(quality.min_margin, MARGIN_TARGET), quality.com_offset, -quality.epsilon,
+            mean_distance)

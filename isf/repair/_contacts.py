@@ -59,6 +59,7 @@ def contact_pairs(T, R, p, contact, surface_starts, obj, guess, outlier_factor, 
                               tree, scratch, np.inf)
         guess[i], target[i], dist[i] = t, t, np.sqrt(d2)
         compatible[i] = row_dot(normals, i, obj_normals, t) <= cos_limit
+    # a typed True, not a literal: the filter_pairs that match_many compiles serves here too
     keep = filter_pairs(dist, target, surface_starts, surface_starts, outlier_factor,
-                         outlier_floor, compatible, True)
+                         outlier_floor, compatible, np.bool_(True))
     return np.flatnonzero(keep), points, target

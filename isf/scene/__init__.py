@@ -9,21 +9,26 @@ takes a scene wherever it takes an object. See docs/tutorial-depth-camera.md for
 from .camera import CameraIntrinsics, camera_pose, parse_intrinsics
 from .loading import NORMAL_NEIGHBOURS, SCENE_VOXEL, Scene, load_scene
 from .segments import SceneSegments, segment_surface
+from .settle import NOISE_MARGIN, Settled, Settler, contact_allowance
 from .table import TABLE_MARGIN, find_table
 from .unseen import UnseenSpace, ViewDepth
 from .views import SceneView
 
 __all__ = [
     "CameraIntrinsics",
+    "NOISE_MARGIN",
     "NORMAL_NEIGHBOURS",
     "SCENE_VOXEL",
     "Scene",
     "SceneSegments",
     "SceneView",
+    "Settled",
+    "Settler",
     "TABLE_MARGIN",
     "UnseenSpace",
     "ViewDepth",
     "camera_pose",
+    "contact_allowance",
     "find_table",
     "load_scene",
     "parse_intrinsics",

@@ -10,7 +10,9 @@
 3. estimates normals by PCA over each point's ``NORMAL_NEIGHBOURS`` (16) nearest neighbours,
    moves each point onto its local plane (smoothing the depth noise across the surface, as the
    paper smoothed its stereo clouds) and turns each normal towards the camera that saw the point
-   (every point a camera saw faces it);
+   (every point a camera saw faces it); the neighbours' scatter about those planes (their RMS
+   distance, the median over the points) is the scene's ``Scene.noise``, which sets how far
+   a settled grasp stays out of the observed surface (:mod:`isf.scene.settle`);
 4. splits the surface into smooth, convex pieces (:mod:`isf.scene.segments`), which the planner
    uses to rank down grasps resting on two objects;
 5. keeps each camera's depth buffer as the scene's unseen space (:mod:`isf.scene.unseen`),
@@ -66,6 +68,9 @@ class Scene:
         T_scene_camera: each camera's pose, (C, 4, 4).
         observed: points the cameras measured, before the table was removed and the rest thinned.
         name: where the scene came from.
+        noise: the surface's depth noise, metres: the median over its points of the RMS
+            distance of a point's neighbours from its local plane (step 3 of
+            :func:`load_scene`), before the smoothing.
     """
 
     surface: ObjectSurface
@@ -75,6 +80,7 @@ class Scene:
     T_scene_camera: np.ndarray
     observed: int
     name: str = "scene"
+    noise: float = 0.0
 
     @property
     def obstacles(self) -> tuple[Plane, ...]:
@@ -150,13 +156,13 @@ def load_scene(
                 "camera pose, or plan without --table")
         points, camera_of = points[above], camera_of[above]
         given = None if given is None else given[above]
-    surface = _surface(points, given, camera_of, cameras, float(voxel_size), label)
+    surface, noise = _surface(points, given, camera_of, cameras, float(voxel_size), label)
     unseen = UnseenSpace(tuple(ViewDepth.from_depth(o.depth, o.intrinsics, o.T_scene_camera)
                                for o in observations))
     scene = Scene(surface, plane, unseen, SceneSegments.of(surface.points, surface.normals,
                                                            surface.spacing),
                   np.array([o.T_scene_camera for o in observations]),
-                  sum(len(o.points) for o in observations), label)
+                  sum(len(o.points) for o in observations), label, noise)
     logger.info("%r", scene)
     return scene
 
@@ -178,8 +184,9 @@ def _views(source, **single) -> list[SceneView]:
 
 
 def _surface(points: np.ndarray, given: np.ndarray | None, camera_of: np.ndarray,
-             cameras: np.ndarray, voxel: float, label: str) -> ObjectSurface:
-    """Thin, smooth and give camera-facing normals to the points above the table."""
+             cameras: np.ndarray, voxel: float, label: str) -> tuple[ObjectSurface, float]:
+    """Thin, smooth and give camera-facing normals to the points above the table; also the
+    surface's noise (``Scene.noise``), metres."""
     labels, n_vox = voxel_labels(points, voxel)
     _, first = np.unique(labels, return_index=True)
     camera_of = camera_of[first]
@@ -193,9 +200,12 @@ def _surface(points: np.ndarray, given: np.ndarray | None, camera_of: np.ndarray
     spacing = float(np.median(dist[:, 1]))
     if normals is None:
         normals = estimate_normals(points, neighbours)
-        centres = points[neighbours].mean(axis=1)
+    centres = points[neighbours].mean(axis=1)
+    scatter = np.einsum("ikj,ij->ik", points[neighbours] - centres[:, None], normals)
+    noise = float(np.median(np.sqrt(np.mean(scatter ** 2, axis=1))))
+    if given is None:
         points = points - np.einsum("ij,ij->i", points - centres, normals)[:, None] * normals
     towards = cameras[camera_of] - points
     normals = np.where((np.einsum("ij,ij->i", normals, towards) < 0)[:, None], -normals, normals)
     return ObjectSurface(points=points, normals=normals, spacing=max(spacing, voxel), name=label,
-                         viewpoints=cameras)
+                         viewpoints=cameras), noise

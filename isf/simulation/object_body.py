@@ -1,9 +1,10 @@
 """The object as a rigid body: convex parts for contact, mass, centre of mass and inertia.
 
 MuJoCo collides convex geometry only (it takes the convex hull of every mesh). A mesh whose
-volume fills its convex hull to within ``CONVEX_FILL`` is used as one hull; any other is split
-by CoACD (Wei et al., "Approximate Convex Decomposition for 3D Meshes with Collision-Aware
-Concavity and Tree Search", SIGGRAPH 2022) into convex parts, in a child process (see
+volume fills its convex hull to within ``CONVEX_FILL`` is used as one hull; any other (also a
+gripper's grooved fingertip or open pad surface, :func:`convex_parts`) is split by CoACD
+(Wei et al., "Approximate Convex Decomposition for 3D Meshes with Collision-Aware Concavity
+and Tree Search", SIGGRAPH 2022) into convex parts, in a child process (see
 ``_coacd_in_child``), and remembered per mesh for the process's life. Mass properties come from the
 closed mesh with uniform density (the hull's when the mesh is not watertight), scaled to the
 requested mass. Frame: the object's own (mesh) frame, metres.
@@ -18,7 +19,7 @@ import numpy as np
 
 from ..exceptions import InvalidInputError
 
-__all__ = ["CONVEX_FILL", "ObjectBody", "object_body"]
+__all__ = ["CONVEX_FILL", "ObjectBody", "convex_parts", "object_body"]
 
 #: Volume / convex-hull volume above which a mesh is simulated as its hull.
 CONVEX_FILL = 0.97
@@ -58,6 +59,19 @@ def _convex_parts(mesh) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
                                 np.asarray(mesh.faces, dtype=np.int64))
     _PARTS_CACHE[key] = parts
     return parts
+
+
+def convex_parts(vertices: np.ndarray, faces: np.ndarray) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
+    """The convex parts MuJoCo collides for a triangle mesh (vertices (V, 3) m, faces (F, 3)): its
+    hull when the mesh is closed and fills ``CONVEX_FILL`` of it, else CoACD's parts (an open
+    sheet, such as a curved pad's surface, becomes thin parts along it, not the slab of its
+    hull). Used for the object and for every collision element of the gripper."""
+    import trimesh
+
+    mesh = trimesh.Trimesh(np.asarray(vertices, dtype=float), np.asarray(faces, dtype=np.int64),
+                           process=True)
+    mesh.merge_vertices()
+    return _convex_parts(mesh)
 
 
 _COACD_SCRIPT = """

@@ -9,10 +9,13 @@ Frames
 The gripper is built from its URDF (read with yourdfpy): one body per link, a hinge or slide
 joint per revolute or prismatic URDF joint (fixed joints weld the child to its parent), a
 MuJoCo joint-equality constraint ``q_mimic = multiplier * q_leader + offset`` for each
-``<mimic>`` joint, and a position actuator on each actuated joint with its force bounded. Each
-link's collision elements (``Gripper.geometries``) become mesh geoms, which MuJoCo
-collides as their convex hulls. Gripper links have nominal inertia and gravity compensation:
-their own weight does not load the actuators. Only gripper-object pairs collide.
+``<mimic>`` joint (stiff: the follower does not yield under the grip), and a position
+actuator on each actuated joint with its force bounded. Each link's collision elements
+(``Gripper.geometries``) become mesh geoms: one per convex part
+(``isf.simulation.object_body.convex_parts``: a box stays one, a grooved fingertip or a
+curved pad surface is split by CoACD, so that its hull does not fill the groove). Gripper
+links have nominal inertia and gravity compensation: their own weight does not load the
+actuators. Only gripper-object pairs collide.
 """
 
 from __future__ import annotations
@@ -23,7 +26,7 @@ import numpy as np
 
 from ..exceptions import InvalidInputError
 from ..gripper.model import Gripper
-from .object_body import ObjectBody
+from .object_body import ObjectBody, convex_parts
 from .settings import SimulationSettings
 
 __all__ = ["GraspWorld", "build_world", "force_bounds", "physics_spec"]
@@ -35,6 +38,10 @@ FULL_FORCE_ERROR = {False: 0.002, True: 0.02}
 #: Joint armature (kg or kg m^2) and damping (N s/m or N m s/rad), prismatic / revolute.
 ARMATURE = {False: 0.01, True: 1e-3}
 DAMPING = {False: 2.0, True: 0.02}
+#: Time constant of the ``<mimic>`` joint equalities, in integration steps: MuJoCo's stiffest
+#: stable setting (its default 0.02 s lets a follower finger yield millimetres under the grip, so
+#: that part of the actuator's force never reaches the object).
+MIMIC_TIMECONST_STEPS = 2
 GRIPPER_BITS, OBJECT_BITS = 1, 2
 OBJECT_BODY = "isf_object"
 
@@ -104,7 +111,9 @@ def _add_mesh_geom(spec, body, name: str, vertices: np.ndarray, faces: np.ndarra
 def physics_spec(settings: SimulationSettings):
     """An empty ``mujoco.MjSpec`` with the solver options of every grasp world: gravity off,
     elliptic friction cones with ``impratio`` 10 (contacts that stick do not creep), the
-    implicit-fast integrator, 5 no-slip iterations, ``settings.timestep``."""
+    implicit-fast integrator, 5 no-slip iterations, ``settings.timestep``, and multi-point
+    convex collisions (``multiccd``: a pad on a face touches at the corners of their overlap,
+    so the patch resists a torque about its normal and a tilt; one point would not)."""
     import mujoco
 
     spec = mujoco.MjSpec()
@@ -114,6 +123,10 @@ def physics_spec(settings: SimulationSettings):
     spec.option.impratio = 10.0
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
     spec.option.noslip_iterations = 5
+    if hasattr(mujoco.mjtDisableBit, "mjDSBL_MULTICCD"):  # MuJoCo 4: on unless disabled
+        spec.option.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_MULTICCD)
+    else:  # MuJoCo 3: off unless enabled
+        spec.option.enableflags |= int(mujoco.mjtEnableBit.mjENBL_MULTICCD)
     spec.compiler.autolimits = True
     return spec
 
@@ -158,8 +171,9 @@ def build_world(gripper: Gripper, body: ObjectBody, T_object_gripper: np.ndarray
             mj_body.inertia = [LINK_INERTIA] * 3
             mj_body.gravcomp = 1.0
         for k, g in enumerate(geoms_of.get(link, [])):
-            _add_mesh_geom(spec, mj_body, f"g:{link}:{k}", g.vertices, g.faces, settings.friction,
-                           (GRIPPER_BITS, OBJECT_BITS))
+            for j, (v, f) in enumerate(convex_parts(g.vertices, g.faces)):
+                _add_mesh_geom(spec, mj_body, f"g:{link}:{k}:{j}", v, f, settings.friction,
+                               (GRIPPER_BITS, OBJECT_BITS))
         for joint in children.get(link, []):
             origin = np.asarray(joint.origin if joint.origin is not None else np.eye(4), dtype=float)
             child = mj_body.add_body(name=joint.child, pos=origin[:3, 3].tolist(),
@@ -198,6 +212,7 @@ def build_world(gripper: Gripper, body: ObjectBody, T_object_gripper: np.ndarray
     for name, leader, multiplier, offset in mimics:
         eq = spec.add_equality(type=mujoco.mjtEq.mjEQ_JOINT, name1=name, name2=leader)
         eq.data[:5] = [offset, multiplier, 0.0, 0.0, 0.0]
+        eq.solref = [MIMIC_TIMECONST_STEPS * settings.timestep, 1.0]
     actuated = gripper.joint_names
     bounds = force_bounds(gripper, q, settings.finger_force)
     for j, name in enumerate(actuated):

@@ -174,35 +174,71 @@ class ObjectDescriptors:
         missing = np.unique(index[np.isnan(self._local[index, 0])])
         if len(missing):
             neighbours = self.tree.query_ball_point(self.points[missing], _BALL * self.opening)
-            for i, near in zip(missing, neighbours):
-                if len(near) < 4:
-                    self._local[i] = 0.0
-                    continue
-                eigen = np.linalg.eigvalsh(np.cov(self.points[near].T))
-                self._local[i, 0] = eigen[0] / max(eigen.sum(), 1e-30)
-                self._local[i, 1] = 1.0 - np.linalg.norm(self.normals[near].mean(axis=0))
+            counts = np.array([len(near) for near in neighbours])
+            self._local[missing[counts < 4]] = 0.0
+            full = counts >= 4
+            if full.any():
+                self._local[missing[full]] = self._local_descriptors(
+                    missing[full], [near for near, ok in zip(neighbours, full) if ok])
         return self._local[index]
+
+    def _local_descriptors(self, index: np.ndarray, neighbours: list[list[int]]) -> np.ndarray:
+        """``surface_variation`` and ``normal_spread`` of points ``index`` from their (>= 4)
+        neighbours, all at once: per-point sums by ``np.add.reduceat``, shape (M, 2)."""
+        counts = np.array([len(near) for near in neighbours])
+        flat = np.concatenate(neighbours).astype(int)
+        starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+        offset = self.points[flat] - np.repeat(self.points[index], counts, axis=0)
+        mean = np.add.reduceat(offset, starts, axis=0) / counts[:, None]
+        second = np.add.reduceat(offset[:, :, None] * offset[:, None, :], starts, axis=0)
+        covariance = second / counts[:, None, None] - mean[:, :, None] * mean[:, None, :]
+        eigen = np.linalg.eigvalsh(covariance)  # ascending, (M, 3)
+        variation = eigen[:, 0] / np.maximum(eigen.sum(axis=1), 1e-30)
+        normal = np.add.reduceat(self.normals[flat], starts, axis=0) / counts[:, None]
+        return np.column_stack([variation, 1.0 - np.linalg.norm(normal, axis=1)])
+
+
+_CHUNK = 1_000_000  # points x candidates per block of the tube computation
 
 
 def _tube_range(points: np.ndarray, centres: np.ndarray, directions: np.ndarray,
                 radius: float) -> tuple[np.ndarray, np.ndarray]:
     """Per candidate, min and max of ``(p - c) . d`` over the points within ``radius`` of the
-    line through ``c`` along ``d``; (0, 0) where none is. Shapes (M,), metres. Candidates that
-    share a centre (the spins of one point) share one pass over the points."""
-    low = np.zeros(len(centres))
-    high = np.zeros(len(centres))
-    unique, group = np.unique(centres, axis=0, return_inverse=True)
-    group = group.reshape(-1)
-    for g, centre in enumerate(unique):
-        members = np.flatnonzero(group == g)
-        offset = points - centre  # (N, 3)
-        along = offset @ directions[members].T  # (N, m)
-        across2 = np.einsum("nk,nk->n", offset, offset)[:, None] - along**2
-        inside = across2 <= radius**2
+    line through ``c`` along ``d``; (0, 0) where none is.
+
+    Args:
+        points: object points, shape (N, 3), metres.
+        centres: candidate centres, shape (M, 3), metres.
+        directions: unit directions, shape (M, 3).
+        radius: tube radius, metres.
+
+    Returns:
+        ``low`` and ``high``, each shape (M,), metres. Lines that coincide (the same centre
+        and the same or the opposite direction, as the spins of a symmetric gripper give) are
+        computed once; the others in blocks of matrix products.
+    """
+    sign = np.where(directions[np.arange(len(directions)),
+                               np.argmax(np.abs(directions), axis=1)] < 0, -1.0, 1.0)
+    lines = np.hstack([centres, sign[:, None] * directions])
+    unique, line = np.unique(np.round(lines, 9), axis=0, return_inverse=True)
+    first = np.zeros(len(unique), dtype=int)
+    first[line.reshape(-1)[::-1]] = np.arange(len(lines))[::-1]
+    c, d = centres[first], sign[first, None] * directions[first]
+    low, high = np.zeros(len(unique)), np.zeros(len(unique))
+    p2 = np.einsum("nk,nk->n", points, points)[:, None]
+    step = max(1, _CHUNK // max(len(points), 1))
+    for lo in range(0, len(unique), step):
+        block = slice(lo, lo + step)
+        cb, db = c[block], d[block]
+        along = points @ db.T - np.einsum("mk,mk->m", cb, db)[None, :]  # (N, m)
+        distance2 = p2 - 2.0 * (points @ cb.T) + np.einsum("mk,mk->m", cb, cb)[None, :]
+        inside = distance2 - along**2 <= radius**2
         any_inside = inside.any(axis=0)
-        low[members] = np.where(any_inside, np.where(inside, along, np.inf).min(axis=0), 0.0)
-        high[members] = np.where(any_inside, np.where(inside, along, -np.inf).max(axis=0), 0.0)
-    return low, high
+        low[block] = np.where(any_inside, np.where(inside, along, np.inf).min(axis=0), 0.0)
+        high[block] = np.where(any_inside, np.where(inside, along, -np.inf).max(axis=0), 0.0)
+    line = line.reshape(-1)
+    flip = sign < 0  # the opposite of the computed direction: the range mirrored
+    return np.where(flip, -high[line], low[line]), np.where(flip, -low[line], high[line])
 
 
 def candidate_features(descriptors: ObjectDescriptors, axes: GripperAxes,

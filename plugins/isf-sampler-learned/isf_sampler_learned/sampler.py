@@ -1,20 +1,28 @@
-"""The ``learned`` sampler: starts scored by a model trained on earlier ISF outcomes.
+"""The ``learned`` sampler: the regret bandit's arms, steered by a model trained on earlier ISF
+outcomes.
 
-At :meth:`LearnedSampler.reset` it draws a pool of cheap candidate starts: ``candidates //
-spins`` object points, each with ``spins`` orientations evenly spaced about the inward normal
-(the gripper's approach axis facing the surface; uniformly random orientations for a gripper
-without one). The model scores each from its features (:mod:`isf_sampler_learned.features`):
+The arms are the regret sampler's (:class:`isf.samplers.regret.RegretSampler`): k-means
+cluster centres of the object's points, each approached against its cluster's mean inward
+normal, plus ``model_arms`` surface points that the model ranks best among ``pool`` random
+ones (at least one opening apart). At :meth:`LearnedSampler.reset` the model scores
+``spins`` orientations per arm (evenly spaced about the arm's inward direction, the gripper's
+approach axis facing the surface; uniformly random ones for a gripper without an approach):
 
-    prior(c) = logit P(valid | c) - error_weight * (predicted log10 error(c) - median) / spread
+    score = logit P(valid) - error_weight * (predicted log10 error - median) / spread
 
-Each :meth:`~LearnedSampler.propose` draws an unused candidate with probability proportional
-to ``exp(score / temperature)`` (the Gumbel-max trick on the plan's ``rng``), with a
-temperature ``exploration * decay**t`` after ``t`` proposals: it spreads early and settles on
-the best later. :meth:`~LearnedSampler.observe` updates the candidates' *region* (the nearest
-of ``regions`` anchor points spread over the candidates), as the regret bandit updates a
-cluster: a region's probability of success is the model's prior worth ``prior_strength``
-pseudo-outcomes plus its observed outcomes (success: collision-free with a finite error), and
-its expected log error mixes the prediction with the errors seen there.
+and an arm's *prior* is the mean of its ``top`` best scores. Each
+:meth:`~LearnedSampler.propose`:
+
+- picks the arm as the regret bandit does (least average regret, paper Alg. 3), except that
+  among the arms not yet tried it takes the one with the best prior first;
+- draws the arm's orientation with probability proportional to ``exp(score / exploration)``
+  (Gumbel-max on the plan's ``rng``), turned by a uniform angle within its spin's share of
+  the circle so that repeated draws differ.
+
+:meth:`~LearnedSampler.observe` updates the arm's average regret exactly as the regret
+sampler does. The model thus chooses where the first samples go and which way the jaws
+close, while the choice of the arm to exploit rests on the outcomes: a model that ranks
+badly costs the ``model_arms`` exploratory samples and the spins it prefers, not the plan.
 """
 
 from __future__ import annotations
@@ -29,8 +37,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from isf.exceptions import ConfigError
-from isf.samplers import Outcome, Proposal, Sampler, place_gripper, random_rotation
-from isf.samplers.orientation import facing_rotations
+from isf.samplers import Outcome, Proposal, Sampler, place_gripper
+from isf.samplers.orientation import initial_rotations
+from isf.samplers.regret import RegretSampler
 from isf.se3 import exp_so3
 
 from .bundled import bundled_model
@@ -50,8 +59,8 @@ if TYPE_CHECKING:
 __all__ = ["LearnedSampler", "NoModelWarning"]
 
 logger = logging.getLogger(__name__)
-_TEMPERATURE_FLOOR = 1e-3
 _CLIP = 1e-4  # probabilities are kept within [_CLIP, 1 - _CLIP] before the logit
+_POOL_SPINS = 6  # orientations per pool point when choosing the model's arms
 
 
 class NoModelWarning(UserWarning):
@@ -60,107 +69,110 @@ class NoModelWarning(UserWarning):
 
 @dataclass(eq=False, kw_only=True)
 class LearnedSampler(Sampler):
-    """Candidate starts ranked by a trained model, refined online by per-region outcomes.
+    """The regret bandit's arms, ordered and oriented by a trained model (module docstring).
 
-    ``record`` holds ``{"candidate": index into the pool, "region": r, "p_valid": model's
-    probability}``.
+    ``record`` holds ``{"cluster": arm, "regret": its average regret when proposed,
+    "spin": orientation index, "p_valid": the model's probability}``; arms
+    ``0 .. k_clusters - 1`` are the k-means clusters, the others the model's arms.
 
     Args:
         model: ``"auto"`` (default): the bundled model trained for this gripper (matched by
             :func:`~isf_sampler_learned.features.gripper_sha256`), or none with a
-            :class:`NoModelWarning`; ``"none"``: no model (online evidence only); else the
-            path of a model file (:mod:`isf_sampler_learned.model`), which must belong to the
-            gripper.
-        candidates: size of the candidate pool, >= 1.
-        spins: orientations per candidate point, >= 1.
-        exploration: temperature of the first draw (logit units), >= 0.
-        decay: factor of the temperature per proposal, in (0, 1].
-        prior_strength: pseudo-outcomes the model's prior is worth in a region, > 0.
+            :class:`NoModelWarning`; ``"none"``: no model (the regret sampler with
+            evenly spread spins); else the path of a model file
+            (:mod:`isf_sampler_learned.model`), which must belong to the gripper.
+        spins: orientations the model scores per arm, >= 1.
+        exploration: temperature of the orientation draw (logit units), >= 0 (0: always the
+            best-scored spin).
         error_weight: weight of the predicted fitting error in the score, >= 0.
-        regions: regions of online evidence, >= 1.
+        model_arms: arms added at the model's best surface points, >= 0.
+        pool: random surface points scored to place those arms, >= 1.
+        top: best spins averaged into an arm's prior, >= 1.
+        n_clusters: k-means clusters (the regret sampler's ``n_clusters``; None: its default).
+        gamma: collision penalty factor of the regret update (the regret sampler's), >= 0.
 
     Attributes:
-        pool_centres: candidate grasp centres, object frame, shape (C, 3), metres.
-        pool_T: candidate ``T_object_gripper``, shape (C, 4, 4).
-        p_valid: the model's probability of a valid grasp per candidate, shape (C,).
-        prior: the prior score per candidate, shape (C,).
-        region: region of each candidate, shape (C,).
-        successes: successes per region, shape (regions,).
-        trials: outcomes per region, shape (regions,).
-        used: whether each candidate was proposed, shape (C,).
+        bandit: the regret sampler that keeps the arms (its ``centres``, ``inward``,
+            ``regret``, ``trials`` and ``pending`` include the model's arms).
+        k_clusters: how many of the arms are k-means clusters.
+        R: orientations per arm, ``R_object_gripper``, shape (A, spins, 3, 3).
+        p_valid: the model's probability of a valid grasp per arm and spin, shape (A, spins).
+        score: score per arm and spin, shape (A, spins).
+        prior: prior per arm, shape (A,).
+        used: whether each arm's spin was proposed, shape (A, spins) (a gripper without an
+            approach draws each of its arm's random rotations once before any twice).
     """
 
     name = "learned"
-    description = "starts ranked by a model trained on earlier ISF outcomes, refined online"
+    description = "regret's arms, ordered and oriented by a model trained on earlier ISF outcomes"
 
     model: str | os.PathLike = "auto"
-    candidates: int = 512
-    spins: int = 8
+    spins: int = 12
     exploration: float = 0.5
-    decay: float = 0.9
-    prior_strength: float = 4.0
     error_weight: float = 0.5
-    regions: int = 8
+    model_arms: int = 2
+    pool: int = 24
+    top: int = 3
+    n_clusters: int | None = None
+    gamma: float = 0.2
 
     loaded: LearnedModel | None = field(init=False, repr=False, default=None)
-    pool_centres: np.ndarray = field(init=False, repr=False, default=None)
-    pool_T: np.ndarray = field(init=False, repr=False, default=None)
+    bandit: RegretSampler = field(init=False, repr=False, default=None)
+    k_clusters: int = field(init=False, repr=False, default=0)
+    R: np.ndarray = field(init=False, repr=False, default=None)
     p_valid: np.ndarray = field(init=False, repr=False, default=None)
+    score: np.ndarray = field(init=False, repr=False, default=None)
     prior: np.ndarray = field(init=False, repr=False, default=None)
-    region: np.ndarray = field(init=False, repr=False, default=None)
-    successes: np.ndarray = field(init=False, repr=False, default=None)
-    trials: np.ndarray = field(init=False, repr=False, default=None)
     used: np.ndarray = field(init=False, repr=False, default=None)
-    _log_error: np.ndarray = field(init=False, repr=False, default=None)
-    _error_sum: np.ndarray = field(init=False, repr=False, default=None)
-    _error_count: np.ndarray = field(init=False, repr=False, default=None)
-    _proposed: int = field(init=False, repr=False, default=0)
     _axes: GripperAxes | None = field(init=False, repr=False, default=None)
 
     def __post_init__(self) -> None:
-        for key in ("candidates", "spins", "regions"):
+        for key, low in (("spins", 1), ("model_arms", 0), ("pool", 1), ("top", 1)):
             value = getattr(self, key)
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-                raise ConfigError(f"learned: {key} must be an integer >= 1, got {value!r}")
-        ranges = {"exploration": (0.0, np.inf, True), "decay": (0.0, 1.0, False),
-                  "prior_strength": (0.0, np.inf, False), "error_weight": (0.0, np.inf, True)}
-        for key, (low, high, closed) in ranges.items():
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
+                raise ConfigError(f"learned: {key} must be an integer >= {low}, got {value!r}")
+        for key in ("exploration", "error_weight"):
             value = getattr(self, key)
             number = isinstance(value, (int, float, np.number)) and not isinstance(value, bool)
-            if not number or not np.isfinite(value) or not (
-                    (low <= value if closed else low < value) and value <= high):
-                bound = f"{'>=' if closed else '>'} {low}" + ("" if high == np.inf else
-                                                             f" and <= {high}")
-                raise ConfigError(f"learned: {key} must be a number {bound}, got {value!r}")
+            if not number or not np.isfinite(value) or value < 0:
+                raise ConfigError(f"learned: {key} must be a number >= 0.0, got {value!r}")
         if not isinstance(self.model, (str, os.PathLike)):
             raise ConfigError(f"learned: model must be 'auto', 'none' or a file path, "
                               f"got {self.model!r}")
+        RegretSampler(n_clusters=self.n_clusters, gamma=self.gamma)  # validates both
 
     def reset(self, obj: ObjectSurface, gripper: Gripper, rng: np.random.Generator) -> None:
-        """Score a fresh candidate pool on ``obj`` and forget earlier outcomes.
+        """Cluster the object, place the model's arms, score every arm's spins and zero the
+        regret table.
 
         Raises:
             ModelFileError: ``model`` names a file that is unreadable or made for another
                 gripper or feature definition.
+            ConfigError: the object has fewer points than the clusters.
         """
         super().reset(obj, gripper, rng)
         self._axes = gripper_axes(gripper)
         self.loaded = self._resolve_model(gripper)
-        n_points = max(1, min(self.candidates // self.spins, obj.n_points))
-        index = np.sort(rng.choice(obj.n_points, size=n_points, replace=False))
-        R = self._orientations(obj, index, rng)
-        centres = np.repeat(obj.points[index], self.spins, axis=0)
-        self.pool_centres = centres
-        self.pool_T = place_gripper(gripper, centres, R)
-        self._score(ObjectDescriptors.build(obj, self._axes), centres, R)
-        self.region = np.repeat(_regions(obj.points[index], self.regions), self.spins)
-        k = int(self.region.max()) + 1
-        self.successes = np.zeros(k)
-        self.trials = np.zeros(k)
-        self._error_sum = np.zeros(k)
-        self._error_count = np.zeros(k)
-        self.used = np.zeros(len(centres), dtype=bool)
-        self._proposed = 0
+        self.bandit = RegretSampler(n_clusters=self.n_clusters, gamma=self.gamma)
+        self.bandit.reset(obj, gripper, rng)
+        self.k_clusters = self.bandit.k
+        descriptors = None if self.loaded is None else ObjectDescriptors.build(obj, self._axes)
+        if descriptors is not None and self.model_arms:
+            self._add_model_arms(obj, descriptors, rng)
+        bandit = self.bandit
+        R = self._spin_rotations(bandit.inward, self.spins, rng)
+        self.R = R.reshape(bandit.k, self.spins, 3, 3)
+        if descriptors is None:
+            self.p_valid = np.full((bandit.k, self.spins), 0.5)
+            self.score = np.zeros((bandit.k, self.spins))
+        else:
+            centres = np.repeat(bandit.centres, self.spins, axis=0)
+            p_valid, score = self._score(descriptors, centres, R)
+            self.p_valid = p_valid.reshape(bandit.k, self.spins)
+            self.score = score.reshape(bandit.k, self.spins)
+        top = min(self.top, self.spins)
+        self.prior = np.sort(self.score, axis=1)[:, -top:].mean(axis=1)
+        self.used = np.zeros((bandit.k, self.spins), dtype=bool)
 
     def _resolve_model(self, gripper: Gripper) -> LearnedModel | None:
         """The model of ``self.model`` for ``gripper``, or None."""
@@ -178,97 +190,117 @@ class LearnedSampler(Sampler):
                 "model=FILE)", NoModelWarning, stacklevel=3)
         return model
 
-    def _orientations(self, obj: ObjectSurface, index: np.ndarray,
-                      rng: np.random.Generator) -> np.ndarray:
-        """``spins`` orientations per point, (len(index) * spins, 3, 3)."""
+    def _spin_rotations(self, inward: np.ndarray, spins: int,
+                        rng: np.random.Generator) -> np.ndarray:
+        """``spins`` orientations per inward direction, evenly spaced about it from a random
+        first one (random rotations for a gripper without an approach), (len(inward) * spins,
+        3, 3)."""
         if self.gripper.approach is None:
-            return random_rotation(rng, size=len(index) * self.spins)
-        inward = -obj.normals[index]
-        base = facing_rotations(self._axes.approach, inward, rng)  # a random first spin
-        turns = 2.0 * np.pi * np.arange(self.spins) / self.spins
+            return initial_rotations(None, np.repeat(inward, spins, axis=0), rng)
         unit = inward / np.linalg.norm(inward, axis=1, keepdims=True)
-        return np.stack([exp_so3(turn * d) @ R for d, R in zip(unit, base) for turn in turns])
+        base = initial_rotations(self._axes.approach, unit, rng)
+        turns = _turns(unit, 2.0 * np.pi * np.arange(spins) / spins)  # (A, spins, 3, 3)
+        return (turns @ base[:, None]).reshape(-1, 3, 3)
 
     def _score(self, descriptors: ObjectDescriptors, centres: np.ndarray,
-               R: np.ndarray) -> None:
-        """Set ``p_valid``, ``prior`` and the predicted log errors of the pool."""
-        if self.loaded is None:
-            self.p_valid = np.full(len(centres), 0.5)
-            self._log_error = np.zeros(len(centres))
-            self.prior = np.zeros(len(centres))
-            return
+               R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The model's ``P(valid)`` and score of starts (centres (M, 3), R (M, 3, 3)), each
+        shape (M,)."""
         features = candidate_features(descriptors, self._axes, centres, R)
-        self.p_valid = np.clip(self.loaded.p_valid(features), _CLIP, 1 - _CLIP)
-        self._log_error = self.loaded.log_error(features)
-        self.prior = _logit(self.p_valid) - self._error_penalty(self._log_error)
+        p_valid = np.clip(self.loaded.p_valid(features), _CLIP, 1 - _CLIP)
+        log_error = self.loaded.log_error(features)
+        penalty = self.error_weight * (log_error - np.median(log_error)) / self.loaded.error_spread
+        return p_valid, _logit(p_valid) - penalty
 
-    def _error_penalty(self, log_error: np.ndarray) -> np.ndarray:
-        spread = self.loaded.error_spread if self.loaded is not None else 1.0
-        return self.error_weight * (log_error - np.median(self._log_error)) / spread
+    def _add_model_arms(self, obj: ObjectSurface, descriptors: ObjectDescriptors,
+                        rng: np.random.Generator) -> None:
+        """Append to the bandit's arms the ``model_arms`` best of ``pool`` random surface points
+        (by the mean of their ``top`` best spin scores), at least one opening apart."""
+        index = rng.choice(obj.n_points, size=min(self.pool, obj.n_points), replace=False)
+        points, inward = obj.points[index], -obj.normals[index]
+        R = self._spin_rotations(inward, _POOL_SPINS, rng)
+        _, score = self._score(descriptors, np.repeat(points, _POOL_SPINS, axis=0), R)
+        top = min(self.top, _POOL_SPINS)
+        merit = np.sort(score.reshape(len(index), _POOL_SPINS), axis=1)[:, -top:].mean(axis=1)
+        chosen: list[int] = []
+        for j in np.argsort(-merit, kind="stable"):
+            if all(np.linalg.norm(points[j] - points[c]) > self._axes.opening for c in chosen):
+                chosen.append(int(j))
+            if len(chosen) == self.model_arms:
+                break
+        bandit = self.bandit
+        bandit.centres = np.vstack([bandit.centres, points[chosen]])
+        bandit.inward = np.vstack([bandit.inward, inward[chosen]])
+        bandit.k += len(chosen)
+        bandit.regret = np.zeros(bandit.k)
+        bandit.trials = np.zeros(bandit.k, dtype=int)
+        bandit.pending = np.zeros(bandit.k, dtype=int)
 
-    def scores(self) -> np.ndarray:
-        """Current score of every candidate: the prior refined by its region's outcomes,
-        shape (C,)."""
+    def choose_arm(self) -> int:
+        """The arm of the next proposal: among untried arms with nothing in flight the one with
+        the best prior, else the regret bandit's choice."""
         self._require_reset()
-        r = self.region
-        a = self.prior_strength
-        p = (a * self.p_valid + self.successes[r]) / (a + self.trials[r])
-        log_error = (a * self._log_error + self._error_sum[r]) / (a + self._error_count[r])
-        penalty = self._error_penalty(log_error) if self.loaded is not None else 0.0
-        return _logit(np.clip(p, _CLIP, 1 - _CLIP)) - penalty
+        bandit = self.bandit
+        fresh = np.flatnonzero((bandit.trials == 0) & (bandit.pending == 0))
+        if self.loaded is not None and len(fresh):
+            return int(fresh[np.argmax(self.prior[fresh])])
+        return bandit.best_cluster()
 
     def propose(self, n: int, rng: np.random.Generator) -> list[Proposal]:
-        """``n`` unused candidates drawn by their scores at the current temperature (the pool
-        is reused once every candidate was proposed)."""
+        """``n`` proposals, each at the arm :meth:`choose_arm` gives with an orientation drawn
+        by its spins' scores."""
         _, gripper = self._require_reset()
+        bandit = self.bandit
         proposals = []
         for _ in range(n):
-            if self.used.all():
-                self.used[:] = False
-            temperature = max(self.exploration * self.decay**self._proposed, _TEMPERATURE_FLOOR)
-            noisy = self.scores() / temperature + rng.gumbel(size=len(self.used))
-            i = int(np.argmax(np.where(self.used, -np.inf, noisy)))
-            self.used[i] = True
-            self._proposed += 1
-            record = {"candidate": i, "region": int(self.region[i]),
-                      "p_valid": float(self.p_valid[i])}
-            proposals.append(Proposal(self.pool_T[i], record=record))
+            k = self.choose_arm()
+            noisy = self.score[k].copy()
+            if self.exploration > 0:
+                noisy = noisy / self.exploration + rng.gumbel(size=self.spins)
+            if gripper.approach is None:  # a fixed set of random rotations: each once per round
+                if self.used[k].all():
+                    self.used[k] = False
+                noisy = np.where(self.used[k], -np.inf, noisy)
+            i = int(np.argmax(noisy))
+            self.used[k, i] = True
+            R = self.R[k, i]
+            if gripper.approach is not None:
+                axis = bandit.inward[k] / np.linalg.norm(bandit.inward[k])
+                R = exp_so3(rng.uniform(-np.pi, np.pi) / self.spins * axis) @ R
+            record = {"cluster": k, "regret": float(bandit.regret[k]), "spin": i,
+                      "p_valid": float(self.p_valid[k, i])}
+            bandit.pending[k] += 1
+            proposals.append(Proposal(place_gripper(gripper, bandit.centres[k], R),
+                                      record=record))
         return proposals
 
+    def in_flight_limit(self) -> int | None:
+        """The regret bandit's: one proposal per untried arm while some are untried."""
+        self._require_reset()
+        return self.bandit.in_flight_limit()
+
     def observe(self, outcomes: Sequence[Outcome]) -> None:
-        """Fold each outcome into its candidate's region.
+        """Fold each outcome into its arm's average regret (the regret sampler's update).
 
         Raises:
-            ValueError: an outcome's proposal has no valid ``"candidate"`` record.
+            ValueError: an outcome's proposal has no valid ``"cluster"`` record.
         """
         self._require_reset()
-        for outcome in outcomes:
-            i = outcome.proposal.record.get("candidate")
-            if not isinstance(i, (int, np.integer)) or not 0 <= i < len(self.used):
-                raise ValueError(
-                    f"learned: outcome record {dict(outcome.proposal.record)!r} has no valid "
-                    "'candidate'; pass back proposals made by this sampler since reset()")
-            r = self.region[i]
-            success = outcome.collision_free and np.isfinite(outcome.error)
-            self.trials[r] += 1
-            self.successes[r] += success
-            if success and outcome.error > 0:
-                self._error_sum[r] += np.log10(outcome.error)
-                self._error_count[r] += 1
+        try:
+            self.bandit.observe(outcomes)
+        except ValueError as err:
+            raise ValueError(str(err).replace("regret:", "learned:", 1)) from None
 
 
 def _logit(p: np.ndarray) -> np.ndarray:
     return np.log(p) - np.log1p(-p)
 
 
-def _regions(points: np.ndarray, k: int) -> np.ndarray:
-    """Region of each point: its nearest of ``k`` anchors chosen by farthest-point sampling
-    from the first point (deterministic), shape (len(points),)."""
-    k = min(k, len(points))
-    anchors = [0]
-    distance = np.linalg.norm(points - points[0], axis=1)
-    for _ in range(k - 1):
-        anchors.append(int(np.argmax(distance)))
-        distance = np.minimum(distance, np.linalg.norm(points - points[anchors[-1]], axis=1))
-    gaps = np.linalg.norm(points[:, None, :] - points[anchors][None, :, :], axis=2)
-    return np.argmin(gaps, axis=1)
+def _turns(axes: np.ndarray, angles: np.ndarray) -> np.ndarray:
+    """Rotations by each of ``angles`` (S,) about each unit axis of ``axes`` (A, 3), shape
+    (A, S, 3, 3) (Rodrigues' formula)."""
+    K = np.zeros((len(axes), 3, 3))
+    K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -axes[:, 2], axes[:, 1], -axes[:, 0]
+    K -= K.transpose(0, 2, 1)
+    sin, cos = np.sin(angles)[None, :, None, None], np.cos(angles)[None, :, None, None]
+    return np.eye(3) + sin * K[:, None] + (1.0 - cos) * (K @ K)[:, None]

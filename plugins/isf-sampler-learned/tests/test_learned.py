@@ -12,6 +12,7 @@ import pytest
 
 import isf
 from isf.samplers import Outcome, available_samplers, get_sampler
+from isf.samplers.regret import RegretSampler
 from isf.testing import canonical_gripper, canonical_object, check_sampler
 from isf_sampler_learned import (
     FEATURE_VERSION,
@@ -57,15 +58,16 @@ def test_conformance(tmp_path):
         warnings.simplefilter("ignore", NoModelWarning)
         check_sampler(LearnedSampler)
         check_sampler(LearnedSampler, gripper=canonical_gripper(approach=None))
-    check_sampler(LearnedSampler(model="none", candidates=40, spins=4),
+    check_sampler(LearnedSampler(model="none", spins=4, pool=8),
                   obj=canonical_object("sphere"))
     path = synthetic_model(canonical_gripper(), tmp_path / "canonical.npz")
     check_sampler(LearnedSampler(model=str(path)))
 
 
 @pytest.mark.parametrize("param, message", [
-    ("candidates=0", "candidates must be an integer >= 1"),
-    ("decay=0", "decay must be a number > 0.0"),
+    ("spins=0", "spins must be an integer >= 1"),
+    ("model_arms=-1", "model_arms must be an integer >= 0"),
+    ("gamma=-1", "gamma must be a finite number >= 0"),
     ("exploration=-1", "exploration must be a number >= 0.0"),
     ("model=3", "model must be"),
 ])
@@ -124,6 +126,36 @@ def test_features_do_not_depend_on_the_object_frame():
     np.testing.assert_allclose(after, before, atol=1e-9)
 
 
+def test_batched_features_match_a_point_by_point_computation():
+    """Tubes, shared lines (the same centre, the opposite direction) and the neighbourhood
+    descriptors against a plain loop over the object's points."""
+    gripper, obj = isf.load_gripper("paper-parallel"), isf.open_object("asset:duck")
+    axes = gripper_axes(gripper)
+    rng = np.random.default_rng(2)
+    centres = obj.points[rng.choice(obj.n_points, 6)] + rng.normal(scale=2e-3, size=(6, 3))
+    R = isf.samplers.random_rotation(rng, size=6)
+    flip = np.diag([-1.0, -1.0, 1.0])  # a half turn about z: another closing sign
+    centres, R = np.vstack([centres, centres]), np.concatenate([R, R @ flip])
+    features = candidate_features(ObjectDescriptors.build(obj, axes), axes, centres, R)
+    w, points = axes.opening, obj.points
+    for f, c, Rm in zip(features, centres, R):
+        ranges = []
+        for d in (Rm @ axes.closing, Rm @ axes.approach):
+            along = [(p - c) @ d for p in points
+                     if np.linalg.norm(p - c - ((p - c) @ d) * d) <= 0.25 * w]
+            ranges.append((min(along), max(along)) if along else (0.0, 0.0))
+        (low, high), (_, depth) = ranges
+        assert f[2] == pytest.approx((high - low) / w, abs=1e-9)
+        assert f[3] == pytest.approx(abs(0.5 * (high + low)) / w, abs=1e-9)
+        assert f[4] == pytest.approx(max(depth, 0.0) / w, abs=1e-9)
+        nearest = np.argmin(np.linalg.norm(points - c, axis=1))
+        near = np.linalg.norm(points - points[nearest], axis=1) <= 0.5 * w
+        eigen = np.linalg.eigvalsh(np.cov(points[near].T))
+        assert f[5] == pytest.approx(eigen[0] / eigen.sum(), abs=1e-9)
+        assert f[6] == pytest.approx(1 - np.linalg.norm(obj.normals[near].mean(axis=0)),
+                                     abs=1e-9)
+
+
 def test_validity_head_matches_scikit_learn_logistic_regression():
     sklearn = pytest.importorskip("sklearn.linear_model")
     rng = np.random.default_rng(3)
@@ -170,28 +202,47 @@ def test_a_model_for_another_gripper_fails_the_plan_with_one_line(tmp_path):
                  sampler=LearnedSampler(model=str(path)))
 
 
-def test_proposals_follow_the_model_and_the_outcomes(tmp_path):
+def test_proposals_follow_the_model_then_the_outcomes(tmp_path):
     gripper, obj = canonical_gripper(), canonical_object("box")
-    # valid when the approach axis faces the surface: every facing candidate scores high,
-    # so use the closing extent (feature 2) to rank them instead
+    # valid when the approach axis faces the surface: every facing start scores high, so use
+    # the closing extent (feature 2) to rank them instead
     path = synthetic_model(gripper, tmp_path / "m.npz", feature=2)
-    sampler = LearnedSampler(model=str(path), exploration=0.0)
+    sampler = LearnedSampler(model=str(path), exploration=0.0, model_arms=2)
     rng = np.random.default_rng(0)
     sampler.reset(obj, gripper, rng)
-    first = sampler.propose(5, rng)
-    assert all(p.record["p_valid"] >= np.quantile(sampler.p_valid, 0.9) for p in first)
-
-    region = first[0].record["region"]
-    members = sampler.region == region
-    before = sampler.scores()[members]
-    sampler.observe([Outcome(first[0], error=np.inf, collision_free=False)] * 3)
-    a, p0 = sampler.prior_strength, sampler.p_valid[members]
-    error_term = before - (np.log(p0) - np.log1p(-p0))  # no error observed: unchanged
-    expected = np.log(a * p0 / (a + 3)) - np.log1p(-a * p0 / (a + 3)) + error_term
-    np.testing.assert_allclose(sampler.scores()[members], expected, atol=1e-9)
-    assert (sampler.scores()[members] < before).all()
-    with pytest.raises(ValueError, match="no valid 'candidate'"):
+    arms = sampler.bandit.k
+    assert arms == sampler.k_clusters + 2
+    # first round: every arm once, best prior first, each at its best-scored spin
+    first = [sampler.propose(1, rng)[0] for _ in range(arms)]
+    order = [p.record["cluster"] for p in first]
+    assert sorted(order) == list(range(arms))
+    np.testing.assert_array_equal(order, np.argsort(-sampler.prior, kind="stable"))
+    for p in first:
+        k, i = p.record["cluster"], p.record["spin"]
+        assert sampler.score[k, i] == sampler.score[k].max()
+        assert p.record["p_valid"] == sampler.p_valid[k, i]
+    # then the regret rule on the outcomes: the least average error, collisions penalised
+    errors = np.linspace(5e-3, 1e-3, arms)
+    sampler.observe([Outcome(p, float(errors[p.record["cluster"]]), collision_free=k != arms - 2)
+                     for k, p in enumerate(first)])
+    best = int(np.argmin(errors * np.where(np.arange(arms) == order[arms - 2], 1.2, 1.0)))
+    assert sampler.propose(1, rng)[0].record["cluster"] == best
+    with pytest.raises(ValueError, match="learned: outcome record"):
         sampler.observe([Outcome(isf.samplers.Proposal(np.eye(4)), 1e-3, True)])
+
+
+def test_without_a_model_the_arms_are_the_regret_samplers_clusters():
+    gripper, obj = canonical_gripper(), canonical_object("box")
+    learned, regret = LearnedSampler(model="none"), RegretSampler()
+    learned.reset(obj, gripper, np.random.default_rng(4))
+    regret.reset(obj, gripper, np.random.default_rng(4))
+    np.testing.assert_array_equal(learned.bandit.centres, regret.centres)
+    assert learned.bandit.k == learned.k_clusters == regret.k
+    # spins evenly spaced about each cluster's inward direction, approach axis facing it
+    approach = learned.R[..., :, :] @ gripper_axes(gripper).approach
+    inward = regret.inward / np.linalg.norm(regret.inward, axis=1, keepdims=True)
+    np.testing.assert_allclose(approach, np.repeat(inward[:, None], learned.spins, axis=1),
+                               atol=1e-9)
 
 
 def test_training_examples_are_labelled_and_deterministic():

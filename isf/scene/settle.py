@@ -1,0 +1,169 @@
+"""Settle a grasp planned on a scene: fingers opened and palm backed off until they stop short of
+the observed surface by what its noise could hide.
+
+The planner accepts a grasp whose links sit up to its collision tolerance (2 mm) inside the
+surface it sees. On a complete object that surface is exact; on a scene it is a depth camera's,
+smoothed, and the true surface lies up to a few of its noise widths behind or in front of it,
+so a grasp at the tolerance on a scene may press 2-4 mm into the object it was planned on
+(on simulated scenes, grasps the check measured 0.6-2 mm deep were 0.5-3.2 mm deep in the true
+meshes).
+
+:class:`Settler` moves each collision-free grasp out of the observed surface until its deepest
+penetration (object, unseen space and table, as the planner's check) is within the *contact
+allowance* ``max(0, tolerance - NOISE_MARGIN x Scene.noise)``:
+
+* one finger (a link carrying a contact surface) too deep, and no other finger so far: the
+  gripper moves against that finger's contact normal by the excess depth (the other fingers
+  come closer to their surfaces instead of leaving them);
+* fingers too deep on more than one side: the fingers open towards :attr:`isf.Gripper.q_open`,
+  the contact points moving by the excess depth;
+* any other link (the palm) too deep, or fingers that cannot open further: the gripper backs off
+  along its approach direction by the excess depth.
+
+Each move goes :data:`STEP_MARGIN` beyond the excess.
+
+At most :data:`SETTLE_STEPS` moves are made; the settled state is scored afresh
+(:func:`isf.fitting.engine.score_fit`) and kept when every contact surface still touches the
+surface. A grasp that cannot be settled keeps its planned pose and joints and is marked
+unsettled (:attr:`Settled.settled`); the planner ranks it after the settled ones.
+
+Frames: poses are ``T_scene_gripper`` (the planner's ``T_object_gripper`` on a scene), metres.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import NamedTuple
+
+import numpy as np
+
+from ..collision.checker import CollisionChecker, CollisionReport, Plane
+from ..config import FitConfig
+from ..fitting.engine import score_fit
+from ..gripper.model import Gripper
+from ..object.surface import ObjectSurface
+from ..result import FitResult
+from .loading import Scene
+
+__all__ = ["NOISE_MARGIN", "SETTLE_STEPS", "STEP_MARGIN", "Settled", "Settler", "contact_allowance"]
+
+NOISE_MARGIN = 1.5
+"""How many noise widths (``Scene.noise``) the contact allowance takes off the collision
+tolerance."""
+
+SETTLE_STEPS = 8
+"""Moves (an opening of the fingers or a back-off of the palm) tried per grasp at most."""
+
+STEP_MARGIN = 3e-4
+"""Metres a move goes beyond the excess depth it removes (the depth estimate on a noisy surface
+does not fall one for one with the move)."""
+
+_MIN_MOVE = 2e-4  # m, the smallest finger opening worth making
+
+
+def contact_allowance(scene: Scene, tolerance: float) -> float:
+    """The penetration a settled grasp may keep against the scene's observed surface, metres:
+    ``max(0, tolerance - NOISE_MARGIN * scene.noise)``."""
+    return max(0.0, float(tolerance) - NOISE_MARGIN * float(scene.noise))
+
+
+class Settled(NamedTuple):
+    """A grasp after :meth:`Settler.settle`.
+
+    Attributes:
+        result: the settled fit (the given one when nothing moved or settling failed).
+        report: its collision check at the contact allowance when settled, else the given one.
+        settled: True when the grasp is within the contact allowance, every contact surface
+            touching; False for a collision-free grasp that could not be settled; None for a
+            grasp that collides.
+    """
+
+    result: FitResult
+    report: CollisionReport
+    settled: bool | None
+
+
+class Settler:
+    """Settles the grasps of one plan on a scene (see the module docstring).
+
+    Args:
+        gripper: the gripper planned with.
+        obj: the surface planned on (the scene's surface, as the planner thinned it), scene frame.
+        scene: the scene (its unseen space, its noise).
+        config: the fit parameters (for the re-scoring of a settled state).
+        obstacles: the obstacle planes of the plan (the table included), scene frame.
+        tolerance: the plan's collision tolerance, metres.
+
+    Attributes:
+        allowance: the contact allowance, metres (:func:`contact_allowance`).
+    """
+
+    def __init__(self, gripper: Gripper, obj: ObjectSurface, scene: Scene, config: FitConfig, *,
+                 obstacles: Sequence[Plane] = (), tolerance: float = 0.002):
+        self.gripper, self.obj, self.config = gripper, obj, config
+        self.allowance = contact_allowance(scene, tolerance)
+        self.checker = CollisionChecker(gripper, obj, obstacles=obstacles,
+                                        tolerance=self.allowance, hidden=scene.unseen)
+        self._contact_links = frozenset(gripper.contact_links)
+        self._q_open = gripper.q_open
+        self._approach = gripper.approach_root
+
+    def settle(self, result: FitResult, report: CollisionReport) -> Settled:
+        """Settle a collision-free grasp (``result`` and its planner's ``report``); a grasp
+        that collides comes back unchanged with ``settled`` None."""
+        if not report.collision_free:
+            return Settled(result, report, None)
+        failed = Settled(result, report, False)
+        T, q = np.array(result.T_object_gripper, dtype=float), np.array(result.q, dtype=float)
+        moved, pressed = False, set()
+        for _ in range(SETTLE_STEPS + 1):
+            check = self.checker.check(T, q)
+            if check.collision_free:
+                break
+            pressed.update(self._contact_links.intersection(check.colliding_links))
+            T, q = self._step(T, q, check, pressed)
+            moved = True
+        else:
+            return failed
+        if not moved:
+            return Settled(result, check, True)
+        scored = score_fit(self.gripper, self.obj, T, q, self.config, result.status,
+                           result.history, result.time)
+        if not scored.all_surfaces_in_contact:
+            return failed
+        return Settled(scored, check, True)
+
+    def _step(self, T: np.ndarray, q: np.ndarray, check: CollisionReport,
+              pressed: set[str]) -> tuple[np.ndarray, np.ndarray]:
+        """One move out of the surface for a state whose ``check`` at the allowance failed
+        (``pressed``: the fingers found too deep so far, this state's included)."""
+        move = check.penetration - self.allowance + STEP_MARGIN
+        fingers = [k for k, link in enumerate(self.gripper.contact_links)
+                   if link in check.colliding_links]
+        others = set(check.colliding_links).difference(self.gripper.contact_links)
+        if not others and len(pressed) == 1:  # one finger presses: shift it out, the rest along
+            normals = self.gripper.contact_points(q)[1][self.gripper.point_link == fingers[0]]
+            n = normals.mean(axis=0)
+            return _translated(T, -move * (T[:3, :3] @ (n / np.linalg.norm(n)))), q
+        if not others:
+            opened = self._opened(q, move)
+            if opened is not None:
+                return T, opened
+        return _translated(T, -move * (T[:3, :3] @ self._approach)), q
+
+    def _opened(self, q: np.ndarray, move: float) -> np.ndarray | None:
+        """``q`` with the fingers opened so the contact points move by ``move`` metres at most
+        (along the segment to :attr:`isf.Gripper.q_open`), or None when they are already open."""
+        start = self.gripper.contact_points(q)[0]
+        reach = float(np.linalg.norm(self.gripper.contact_points(self._q_open)[0] - start,
+                                     axis=1).max())
+        if reach < _MIN_MOVE:
+            return None
+        return q + min(1.0, move / reach) * (self._q_open - q)
+
+
+def _translated(T: np.ndarray, shift: np.ndarray) -> np.ndarray:
+    """``T`` (4, 4) moved by ``shift`` (3,) metres in the scene frame."""
+    out = T.copy()
+    out[:3, 3] += shift
+    return out
