@@ -125,7 +125,7 @@ def detect_symmetry(gripper: Gripper, tolerance: float | None = None) -> int:
     """
     from scipy.spatial import cKDTree
 
-    points = gripper.contact_points(gripper.q_initial)[0]
+    points, _ = gripper.contact_points(gripper.q_initial)
     T = gripper.T_root_tcp
     centre, axis = T[:3, 3], gripper.approach_root / np.linalg.norm(gripper.approach_root)
     tree = cKDTree(points)

@@ -141,9 +141,9 @@ class Settler:
         fingers = [k for k, link in enumerate(self.gripper.contact_links)
                    if link in check.colliding_links]
         others = set(check.colliding_links).difference(self.gripper.contact_links)
-        if not others and len(pressed) == 1:  # one finger presses: shift it out, the rest along
-            normals = self.gripper.contact_points(q)[1][self.gripper.point_link == fingers[0]]
-            n = normals.mean(axis=0)
+        if fingers and not others and len(pressed) == 1:  # one finger presses: shift it out
+            _, normals = self.gripper.contact_points(q)
+            n = normals[self.gripper.point_link == fingers[0]].mean(axis=0)
             return _translated(T, -move * (T[:3, :3] @ (n / np.linalg.norm(n)))), q
         if not others:
             opened = self._opened(q, move)
@@ -154,9 +154,9 @@ class Settler:
     def _opened(self, q: np.ndarray, move: float) -> np.ndarray | None:
         """``q`` with the fingers opened so the contact points move by ``move`` metres at most
         (along the segment to :attr:`isf.Gripper.q_open`), or None when they are already open."""
-        start = self.gripper.contact_points(q)[0]
-        reach = float(np.linalg.norm(self.gripper.contact_points(self._q_open)[0] - start,
-                                     axis=1).max())
+        start, _ = self.gripper.contact_points(q)
+        opened, _ = self.gripper.contact_points(self._q_open)
+        reach = float(np.linalg.norm(opened - start, axis=1).max())
         if reach < _MIN_MOVE:
             return None
         return q + min(1.0, move / reach) * (self._q_open - q)
