@@ -180,6 +180,23 @@ def test_cli_validate_names_the_extra_when_mujoco_is_missing(tmp_path, monkeypat
     assert "pip install 'isf[sim]'" in err and len(err.strip().splitlines()) == 1
 
 
+def test_revolute_joints_keep_their_urdf_range_in_radians():
+    """The URDF's joint limits (radians; read here with yourdfpy, not through isf) are the
+    simulated joints' ranges: MuJoCo reads angles as degrees unless told otherwise."""
+    import mujoco
+    import yourdfpy
+
+    gripper = isf.load_gripper("three-finger")
+    world = build_world(gripper, _box(0.03), _T_object_gripper(), gripper.q_initial,
+                        SimulationSettings())
+    robot = yourdfpy.URDF.load(str(gripper.urdf_path), load_meshes=False).robot
+    revolute = [j for j in robot.joints if j.type == "revolute"]
+    assert revolute
+    for joint in revolute:
+        k = mujoco.mj_name2id(world.model, mujoco.mjtObj.mjOBJ_JOINT, joint.name)
+        assert world.model.jnt_range[k] == pytest.approx([joint.limit.lower, joint.limit.upper])
+
+
 @pytest.mark.parametrize("name", ["paper-parallel", "flat-parallel", "three-finger"])
 def test_bundled_closing_tags_close_the_fingers(name):
     """The declared signs move every contact point towards the grasp centre (closing), which

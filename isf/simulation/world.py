@@ -113,7 +113,8 @@ def physics_spec(settings: SimulationSettings):
     elliptic friction cones with ``impratio`` 10 (contacts that stick do not creep), the
     implicit-fast integrator, 5 no-slip iterations, ``settings.timestep``, and multi-point
     convex collisions (``multiccd``: a pad on a face touches at the corners of their overlap,
-    so the patch resists a torque about its normal and a tilt; one point would not)."""
+    so the patch resists a torque about its normal and a tilt; one point would not); angles in
+    radians."""
     import mujoco
 
     spec = mujoco.MjSpec()
@@ -128,6 +129,7 @@ def physics_spec(settings: SimulationSettings):
     else:  # MuJoCo 3: off unless enabled
         spec.option.enableflags |= int(mujoco.mjtEnableBit.mjENBL_MULTICCD)
     spec.compiler.autolimits = True
+    spec.compiler.degree = False  # joint ranges in radians, as URDF states them (MuJoCo reads degrees)
     return spec
 
 
