@@ -19,7 +19,10 @@ Grippers: ``paper-parallel``, ``flat-parallel``, ``three-finger`` (bundled), ``f
 ``allegro-right`` (the vendor Allegro hand with one contact cap per fingertip, as
 bench/bench_hands.py tags it, which is not what ``isf tag`` suggests: docs/validate.md;
 no ``<isf:closing>`` tags, so each joint closes the way its
-contact surfaces' outward normals point, ``Gripper.suggested_closing``), and
+contact surfaces' outward normals point, ``Gripper.suggested_closing``), ``allegro-suggested``
+(the same vendor hand tagged as a user would tag it: ``isf tag URDF --palm-link palm_link``,
+every suggestion taken: fingertip pads facing the other fingertips, approach and tool-centre
+point; closing as for ``allegro-right``), and
 ``paper-parallel-scaled``: ``paper-parallel`` (2.3 cm opening, which no YCB object fits at real
 size) on each object scaled uniformly so that its smallest principal width is
 ``SCALED_FILL`` of the opening (the same 0.3 kg: only the geometry is scaled).
@@ -33,8 +36,10 @@ from __future__ import annotations
 
 import _common
 
+import contextlib
 import importlib
 import importlib.util
+import io
 import inspect
 import json
 import tempfile
@@ -48,14 +53,15 @@ from isf.simulation import SimulationSettings, object_body, validate_grasp
 
 SAMPLES, SEED, TOP, FRICTION = 60, 0, 5, 0.5
 GRIPPERS = ("paper-parallel", "paper-parallel-scaled", "flat-parallel", "three-finger",
-            "franka-hand", "allegro-right")
+            "franka-hand", "allegro-right", "allegro-suggested")
 PARALLEL = ("paper-parallel", "paper-parallel-scaled", "flat-parallel", "franka-hand")
 SCALED = "-scaled"
 SCALED_FILL = 0.6
 OBJECTS = ("Banana", "CrackerBox", "FoamBrick", "GelatinBox", "MasterChefCan", "MustardBottle",
            "PottedMeatCan", "PowerDrill", "Scissors", "TomatoSoupCan")
 #: (top-1, top-5) of the hands; the parallel grippers and the Franka hand: (0.95, 0.90)
-TARGETS = {"three-finger": (0.90, 0.80), "allegro-right": (0.90, 0.80)}
+TARGETS = {"three-finger": (0.90, 0.80), "allegro-right": (0.90, 0.80),
+           "allegro-suggested": (0.90, 0.80)}
 
 
 def meets(value: float, target: float) -> str:
@@ -73,7 +79,28 @@ def load(name: str, folder: Path) -> isf.Gripper:
         import bench_hands
 
         return bench_hands.tagged_allegro(folder)
+    if name == "allegro-suggested":
+        return suggested_allegro(folder)
     return isf.load_gripper(name)
+
+
+def suggested_allegro(folder: Path) -> isf.Gripper:
+    """The vendor Allegro hand tagged by ``isf tag`` with its suggestions (only the palm link
+    named), written into ``folder`` and loaded."""
+    import bench_hands
+    from isf import assets
+    from isf.cli import main
+
+    source = Path(assets.vendor_gripper(bench_hands.ALLEGRO))
+    out = folder / "allegro_suggested.urdf"
+    args = ["tag", str(source), "--out", str(out), "--palm-link", bench_hands.ALLEGRO_PALM]
+    for package, path in bench_hands._package_dirs(source, source.read_text()).items():
+        args += ["--package", f"{package}={path}"]
+    with contextlib.redirect_stdout(io.StringIO()):  # isf tag's preview of what it selected
+        status = main(args)
+    if status != 0:
+        raise SystemExit("isf tag failed on the Allegro URDF")
+    return isf.load_gripper(out)
 
 
 def scaled_object(gripper: isf.Gripper, spec: str):
