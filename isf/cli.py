@@ -478,17 +478,9 @@ def _provenance(args: argparse.Namespace, spec: str):
 def _sampler_params(words: list[str]) -> dict[str, object]:
     """``--sampler-param KEY=VALUE`` words as keyword arguments: a value that reads as an
     integer or a number becomes one, any other stays text (the sampler checks them)."""
-    params: dict[str, object] = {}
-    for key, text in _pairs(words, "--sampler-param").items():
-        for kind in (int, float):
-            try:
-                params[key] = kind(text)
-                break
-            except ValueError:
-                continue
-        else:
-            params[key] = text
-    return params
+    from .config import number_or_text
+
+    return {key: number_or_text(text) for key, text in _pairs(words, "--sampler-param").items()}
 
 
 def _open_scene(args: argparse.Namespace):

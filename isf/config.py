@@ -28,7 +28,8 @@ from numbers import Integral, Real
 
 from .exceptions import ConfigError
 
-__all__ = ["LEVELS_LIMIT", "MAX_ITERATIONS_LIMIT", "FitConfig", "check_field", "config_from_text"]
+__all__ = ["LEVELS_LIMIT", "MAX_ITERATIONS_LIMIT", "FitConfig", "check_field", "config_from_text",
+           "number_or_text"]
 
 MAX_ITERATIONS_LIMIT = 10_000
 """Largest :attr:`FitConfig.max_iterations` (50 times the paper's 200): a fit keeps a history
@@ -163,6 +164,17 @@ def _reject_unknown(cls: type, keys) -> None:
 
 
 _TEXT_TYPES = {"int": int, "float": float, "str": str}
+
+
+def number_or_text(text: str) -> int | float | str:
+    """A ``KEY=VALUE`` word's value whose type nobody declared (a sampler's parameters, a batch
+    manifest's words): an integer or a number when it reads as one, else the text itself."""
+    for kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            continue
+    return text
 
 
 def config_from_text(cls: type, values: dict[str, str]):

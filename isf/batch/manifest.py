@@ -16,6 +16,7 @@ from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
+from ..config import number_or_text
 from ..exceptions import InvalidInputError
 
 __all__ = ["BatchTask", "read_manifest", "tasks_from_mapping"]
@@ -212,14 +213,7 @@ def _words(text: str, name: str, where: str) -> dict[str, Any]:
         key, eq, value = word.partition("=")
         if not eq or not key:
             raise InvalidInputError(f"{where}: {name} word {word!r} must look like KEY=VALUE")
-        for kind in (int, float):
-            try:
-                out[key] = kind(value)
-                break
-            except ValueError:
-                continue
-        else:
-            out[key] = value
+        out[key] = number_or_text(value)
     return out
 
 

@@ -106,6 +106,7 @@ class Settler:
                                         tolerance=self.allowance, hidden=scene.unseen)
         self._contact_links = frozenset(gripper.contact_links)
         self._q_open = gripper.q_open
+        self._open_points, _ = gripper.contact_points(gripper.q_open)
         self._approach = gripper.approach_root
 
     def settle(self, result: FitResult, report: CollisionReport) -> Settled:
@@ -155,8 +156,7 @@ class Settler:
         """``q`` with the fingers opened so the contact points move by ``move`` metres at most
         (along the segment to :attr:`isf.Gripper.q_open`), or None when they are already open."""
         start, _ = self.gripper.contact_points(q)
-        opened, _ = self.gripper.contact_points(self._q_open)
-        reach = float(np.linalg.norm(opened - start, axis=1).max())
+        reach = float(np.linalg.norm(self._open_points - start, axis=1).max())
         if reach < _MIN_MOVE:
             return None
         return q + min(1.0, move / reach) * (self._q_open - q)
