@@ -17,6 +17,7 @@ Helpers:
   library shipped by the ``libusb-package`` wheel);
 * :func:`scaled_benchmark_object`, :func:`object_with_points`: benchmark objects scaled "to fit
   the gripper" as the paper did, and sampled to a requested number of surface points;
+* :func:`tagged_franka_hand`: the vendor Franka hand tagged by ``isf tag``'s suggestions;
 * :func:`base_parser`, :class:`Deadline`: the ``--quick`` / ``--repeats`` / ``--budget`` /
   ``--deadline`` / ``--out`` options.
 
@@ -483,6 +484,33 @@ def import_open3d():
         o3d = importlib.import_module("open3d")
     o3d.utility.set_verbosity_level(o3d.utility.VerbosityLevel.Error)
     return o3d
+
+
+# --------------------------------------------------------------------------- grippers
+
+
+def tagged_franka_hand(folder):
+    """The vendor Franka hand (``isf.assets.vendor_gripper("franka-hand")``) tagged as a user
+    tags it: ``isf tag`` with every suggestion (a contact surface on the distal half of each
+    finger's inner face, the approach, the TCP), written to ``folder/franka-hand.urdf`` and loaded.
+
+    The same command makes the gripper of the learned sampler's bundled ``franka-hand`` model
+    (``isf_sampler_learned.bundled.tagged_franka_hand``), so both have the same sha256.
+    """
+    import contextlib
+    import io
+    from pathlib import Path
+
+    import isf
+    from isf.assets import vendor_gripper
+    from isf.cli import main
+
+    out = Path(folder) / "franka-hand.urdf"
+    with contextlib.redirect_stdout(io.StringIO()):  # isf tag's preview of what it selected
+        status = main(["tag", str(vendor_gripper("franka-hand")), "--out", str(out)])
+    if status:
+        raise RuntimeError(f"isf tag exited {status} on the vendor Franka hand")
+    return isf.load_gripper(out)
 
 
 # --------------------------------------------------------------------------- objects

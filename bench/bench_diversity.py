@@ -1,7 +1,7 @@
 """Distinct grasps among the top 20, before and after the diversity pass (isf.planning.diversity).
 
 For each gripper (the bundled ``paper-parallel``, ``flat-parallel``, ``three-finger`` and the
-tagged Franka hand of ``bench_scenes.tagged_franka_hand``) and each YCB object of
+Franka hand tagged by ``isf tag``, ``_common.tagged_franka_hand``) and each YCB object of
 ``/work/shared/data/ycb`` (metres, as scanned), one plan of 60 samples, seed 0, is made with the
 default :class:`isf.planning.diversity.Diversity` (1 cm, 30 degrees about the TCP, symmetry
 detected), as ``isf.plan`` makes it by default, and its grasps are counted:
@@ -21,7 +21,7 @@ Usage (from the repository root)::
 
 from __future__ import annotations
 
-import _common  # noqa: F401  (first: pins the thread variables)
+import _common  # first: pins the thread variables
 
 import argparse
 import sys
@@ -44,9 +44,7 @@ SEED = 0
 def load(name: str, folder: Path) -> isf.Gripper:
     """A bundled gripper, or the tagged Franka hand (``franka-hand``)."""
     if name == "franka-hand":
-        from bench_scenes import tagged_franka_hand
-
-        return tagged_franka_hand(folder)
+        return _common.tagged_franka_hand(folder)
     return isf.load_gripper(name)
 
 

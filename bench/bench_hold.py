@@ -15,7 +15,7 @@ pairs, ranked by normal alignment and distance from the centre of mass, collisio
 judged the same way, for the parallel grippers and the Franka hand.
 
 Grippers: ``paper-parallel``, ``flat-parallel``, ``three-finger`` (bundled), ``franka-hand``
-(the vendor hand with one contact tag per finger pad, as bench/bench_scenes.py tags it),
+(the vendor hand tagged by ``isf tag``'s suggestions, :func:`_common.tagged_franka_hand`),
 ``allegro-right`` (the vendor Allegro hand with one contact cap per fingertip, as
 bench/bench_hands.py tags it, which is not what ``isf tag`` suggests: docs/validate.md;
 no ``<isf:closing>`` tags, so each joint closes the way its
@@ -72,9 +72,7 @@ def meets(value: float, target: float) -> str:
 def load(name: str, folder: Path) -> isf.Gripper:
     name = name.removesuffix(SCALED)
     if name == "franka-hand":
-        import bench_scenes
-
-        return bench_scenes.tagged_franka_hand(folder)
+        return _common.tagged_franka_hand(folder)
     if name == "allegro-right":
         import bench_hands
 

@@ -34,9 +34,8 @@ the object alone (no table), and the report gives, for every experiment, the med
 penetration of the top-5 grasps.
 
 Grippers: the bundled ``flat-parallel`` and the Franka hand (``isf.assets.vendor_gripper
-("franka-hand")``), tagged in a temporary copy as tests/test_vendor_grippers.py tags it: one
-``<isf:contact>`` per finger pad (link-frame normal -y on the left finger, +y on the right,
-max_angle 0.3 rad); its meshes are reached with ``package_dirs``.
+("franka-hand")``) tagged in a temporary copy by ``isf tag`` with its suggestions
+(:func:`_common.tagged_franka_hand`: a pad on the distal half of each finger's inner face).
 
 Options: ``--scenes N`` (default 20), ``--partial N`` (default: as many as ``--scenes``),
 ``--gripper NAME`` (repeatable: ``flat-parallel``, ``franka-hand``; default both), ``--seed S``,
@@ -54,7 +53,6 @@ from __future__ import annotations
 
 import _common
 
-import re
 import statistics
 import sys
 import tempfile
@@ -78,30 +76,13 @@ TARGETS = {"top1": 0.95, "top5": 0.90, "picking": 0.90, "partial": 0.95, "time_r
 #: A penetrated surface point is seen when a camera measured it within this depth, metres.
 SEEN_TOLERANCE = 0.005
 PARTIAL_DISTANCE = 0.6  # m, camera to object in the partial views: the sensor's 1 mm there
-FRANKA_TAGS = (
-    ("left_pad", "left_finger", 'normal="0 -1 0" max_angle="0.3"'),
-    ("right_pad", "right_finger", 'normal="0 1 0" max_angle="0.3"'),
-)
 
 
 # --------------------------------------------------------------------------- grippers
 
 
-def tagged_franka_hand(folder: Path) -> isf.Gripper:
-    """The vendor Franka hand with one contact tag per finger pad, written into ``folder``."""
-    stock = assets.vendor_gripper("franka-hand")
-    text = re.sub(r"<robot\b", '<robot xmlns:isf="urn:isf:gripper:1"', stock.read_text(),
-                  count=1)
-    tags = "".join(f'  <isf:contact name="{n}" link="{link}" {more}/>\n'
-                   for n, link, more in FRANKA_TAGS)
-    end = text.rindex("</robot>")
-    path = folder / stock.name
-    path.write_text(text[:end] + tags + text[end:])
-    return isf.load_gripper(path, package_dirs={"meshes": stock.parent / "meshes"})
-
-
 def load_grippers(names: list[str], folder: Path) -> dict[str, isf.Gripper]:
-    return {n: tagged_franka_hand(folder) if n == "franka-hand" else isf.load_gripper(n)
+    return {n: _common.tagged_franka_hand(folder) if n == "franka-hand" else isf.load_gripper(n)
             for n in names}
 
 

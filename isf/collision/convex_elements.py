@@ -19,6 +19,7 @@ import numpy as np
 import trimesh
 from scipy.spatial import HalfspaceIntersection, QhullError
 
+from ..compiled.arrays import copy_into
 from ..compiled.kernels import kernel
 from ..search.kdtree import squared_distance
 from ..search.point_grid import PointGrid, ball_box_candidates
@@ -322,13 +323,15 @@ def _rows(points, cells, R_links, origins, shapes, boxes, reach, keep):
         for r in range(first_row, count):
             if floors[c] - depth[r] >= deepest[keep - 1]:
                 element[kept], depth[kept], point[kept] = element[r], depth[r], point[r]
-                foot[kept], normal[kept] = foot[r], normal[r]
+                copy_into(foot[kept], foot[r]), copy_into(normal[kept], normal[r])
                 kept += 1
         count = kept
         # put the element's rows in point order
         by_point = np.argsort(point[first_row:count]) + first_row
-        foot[first_row:count], normal[first_row:count] = foot[by_point], normal[by_point]
-        depth[first_row:count], point[first_row:count] = depth[by_point], point[by_point]
+        copy_into(foot[first_row:count], foot[by_point])
+        copy_into(normal[first_row:count], normal[by_point])
+        copy_into(depth[first_row:count], depth[by_point])
+        copy_into(point[first_row:count], point[by_point])
     return (element[:count].copy(), foot[:count].copy(), normal[:count].copy(),
             depth[:count].copy(), point[:count].copy())
 
@@ -354,5 +357,5 @@ def _deepest_face(local, planes, first, last, limit, floor, cut):
 def _grow(values, capacity):
     """``values`` copied into a longer array of ``capacity`` rows."""
     out = np.empty((capacity,) + values.shape[1:], values.dtype)
-    out[:len(values)] = values
+    copy_into(out[:len(values)], values)
     return out

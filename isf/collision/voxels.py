@@ -135,7 +135,7 @@ def _gaps(blocked):
     nearest grown voxel towards a voxel of the grid lies in the grid), taken axis by axis.
     """
     nx, ny, nz = blocked.shape
-    grown = np.zeros(blocked.shape, np.bool_)
+    gaps = np.full(blocked.shape, np.inf)
     for i in range(nx):
         for j in range(ny):
             for k in range(nz):
@@ -143,25 +143,37 @@ def _gaps(blocked):
                     for a in range(max(i - 1, 0), min(i + 2, nx)):
                         for b in range(max(j - 1, 0), min(j + 2, ny)):
                             for c in range(max(k - 1, 0), min(k + 2, nz)):
-                                grown[a, b, c] = True
-    gaps = np.where(grown, 0.0, np.inf)
+                                gaps[a, b, c] = 0.0
     n = max(nx, ny, nz)
     line, out = np.empty(n), np.empty(n)
     site, bound = np.empty(n, np.int64), np.empty(n + 1)
-    for axes in ((0, 1, 2), (0, 2, 1), (1, 2, 0)):  # along z, then y, then x
-        view = gaps.transpose(axes)
-        m = view.shape[2]
-        for i in range(view.shape[0]):
-            for j in range(view.shape[1]):
-                line[:m] = view[i, j, :]
-                _transform_line(line[:m], out[:m], site, bound)
-                view[i, j, :] = out[:m]
+    for axis in (2, 1, 0):  # along z, then y, then x
+        _transform_axis(gaps, axis, line, out, site, bound)
     diagonal = float(nx * nx + ny * ny + nz * nz)
     for i in range(nx):
         for j in range(ny):
             for k in range(nz):
                 gaps[i, j, k] = min(gaps[i, j, k], diagonal)
     return gaps
+
+
+@kernel
+def _transform_axis(gaps, axis, line, out, site, bound):
+    """:func:`_transform_line` on every line of ``gaps`` (3-D) along ``axis``, in place
+    (``line``, ``out``: scratch of the longest side; ``site``, ``bound``: its scratch)."""
+    m = gaps.shape[axis]
+    u, v = (axis + 1) % 3, (axis + 2) % 3
+    at = np.zeros(3, np.int64)
+    for a in range(gaps.shape[u]):
+        for b in range(gaps.shape[v]):
+            at[u], at[v] = a, b
+            for c in range(m):
+                at[axis] = c
+                line[c] = gaps[at[0], at[1], at[2]]
+            _transform_line(line[:m], out[:m], site, bound)
+            for c in range(m):
+                at[axis] = c
+                gaps[at[0], at[1], at[2]] = out[c]
 
 
 @kernel(inline=True)

@@ -4,6 +4,8 @@
   compiled function (cached, releasing the GIL, numpy's error model).
 - :mod:`isf.compiled.leaf`: :func:`~isf.compiled.leaf.leaf`, the decorator of per-query
   kernels compiled without reference counting and inlined into their callers.
+- :mod:`isf.compiled.arrays`: :func:`~isf.compiled.arrays.copy_into`, the kernels' array copy
+  (numba's slice assignment from an array compiles seconds more).
 - :mod:`isf.compiled.cache`: numba's disk cache kept consistent with the sources (run before
   the first kernel is defined).
 - ``isf.compiled.healing``: ``cached_njit``, numba's cache of one

@@ -20,6 +20,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..compiled.arrays import copy_into
 from ..compiled.kernels import kernel
 from ..gripper.chain import ChainArrays, compiled_frame_kinematics
 from ._finger_step import bounded_steps
@@ -226,8 +227,9 @@ def alternate(state, moments, params, start, answer):
                     Jv_fresh, Jw_fresh = fresh.J_linear, fresh.J_angular
                     R_new, p_new, Jv_new, Jw_new = R.copy(), p.copy(), Jv.copy(), Jw.copy()
                     for k in range(len(rows)):
-                        R_new[rows[k]], p_new[rows[k]] = R_fresh[k], p_fresh[k]
-                        Jv_new[rows[k]], Jw_new[rows[k]] = Jv_fresh[k], Jw_fresh[k]
+                        copy_into(R_new[rows[k]], R_fresh[k]), copy_into(p_new[rows[k]], p_fresh[k])
+                        copy_into(Jv_new[rows[k]], Jv_fresh[k])
+                        copy_into(Jw_new[rows[k]], Jw_fresh[k])
                 else:
                     return _request(NEED_KINEMATICS, it, n_fits, n, q_new, moved)
         error_new = fit_errors(T_new, R_new, p_new, m.origin, m.M, m.N, m.v, m.beta2, m.w, m.count,
@@ -237,8 +239,10 @@ def alternate(state, moments, params, start, answer):
             accept = active[b] and error_new[b] <= error[b]
             decrease = error[b] - error_new[b]
             if accept:
-                T[b], q[b], error[b] = T_new[b], q_new[b], error_new[b]
-                R[b], p[b], Jv[b], Jw[b] = R_new[b], p_new[b], Jv_new[b], Jw_new[b]
+                copy_into(T[b], T_new[b]), copy_into(q[b], q_new[b])
+                error[b] = error_new[b]
+                copy_into(R[b], R_new[b]), copy_into(p[b], p_new[b])
+                copy_into(Jv[b], Jv_new[b]), copy_into(Jw[b], Jw_new[b])
                 log[b, n_log[b]] = error[b]
                 n_log[b] += 1
             active[b] = accept and decrease > threshold[b]

@@ -10,6 +10,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..compiled.arrays import copy_into
 from ..compiled.kernels import kernel
 from ..object.surface import ObjectSurface
 from .segments import Segments
@@ -129,7 +130,7 @@ def outlier_threshold(dist, a, b, outlier_factor, outlier_floor, ranked):
         within += outlier_factor * dist[i] <= outlier_floor
     if n == 0 or within > n // 2:
         return outlier_floor
-    ranked[:n] = dist[a:b]
+    copy_into(ranked[:n], dist[a:b])
     upper = select(ranked, n, n // 2)  # leaves ranked[:n // 2] <= upper
     lower = upper
     if n % 2 == 0:

@@ -44,6 +44,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..compiled.arrays import copy_into
 from ..compiled.kernels import kernel
 from ..search.kdtree import squared_distance
 from ..search.nearest import nearest_point, search_scratch
@@ -388,7 +389,7 @@ def enter_level(b, level, slots, grip):
     current = slots.current
     _place_points(slots.T[b], slots.R[b], slots.p[b], rows, count, grip, current[b],
                   slots.current_normals[b])
-    slots.start[b, :count] = current[b, :count]
+    copy_into(slots.start[b, :count], current[b, :count])
 
 
 @kernel
@@ -474,7 +475,8 @@ def _prepare(slots, grip, obj, fit_params, ipfo_params, work):
     Jvc, Jwc = np.empty((n_fits, n_links, 3, n)), np.empty((n_fits, n_links, 3, n))
     for f in range(n_fits):
         b = fits[f]
-        Tc[f], qc[f], Rc[f], pc[f], Jvc[f], Jwc[f] = T[b], q[b], R[b], p[b], Jv[b], Jw[b]
+        copy_into(Tc[f], T[b]), copy_into(qc[f], q[b]), copy_into(Rc[f], R[b])
+        copy_into(pc[f], p[b]), copy_into(Jvc[f], Jv[b]), copy_into(Jwc[f], Jw[b])
     alpha = ipfo_params.alpha
     error = fit_errors(Tc, Rc, pc, sums.origin, sums.M, sums.N, sums.v, sums.beta2, sums.w,
                        sums.count, alpha ** 2)
@@ -515,7 +517,8 @@ def finish_round(slots, history, grip, fit_params, pairs, state):
     ended = 0
     for f in range(len(fits)):
         b = fits[f]
-        T[b], q[b], R[b], p[b], Jv[b], Jw[b] = Tc[f], qc[f], Rc[f], pc[f], Jvc[f], Jwc[f]
+        copy_into(T[b], Tc[f]), copy_into(q[b], qc[f]), copy_into(R[b], Rc[f])
+        copy_into(p[b], pc[f]), copy_into(Jv[b], Jvc[f]), copy_into(Jw[b], Jwc[f])
         level = level_of[b]
         rows, count = level_rows[level], level_count[level]
         _place_points(T[b], R[b], p[b], rows, count, grip, current[b], current_normals[b])
@@ -531,8 +534,10 @@ def finish_round(slots, history, grip, fit_params, pairs, state):
         h_level[b, h], h_iteration[b, h] = level, iteration[b]
         h_distance[b, h], h_error[b, h] = distance[f] / n_pairs[f], error[f]
         h_pairs[b, h] = n_pairs[f]
-        h_q[b, h], h_T[b, h], h_eta[b, h] = q[b], T[b], eta[b]
-        h_ipfo[b, h], h_n_ipfo[b, h] = log[f], n_log[f]
+        copy_into(h_q[b, h], q[b]), copy_into(h_T[b, h], T[b])
+        h_eta[b, h] = eta[b]
+        copy_into(h_ipfo[b, h], log[f])
+        h_n_ipfo[b, h] = n_log[f]
         h_count[b] = h + 1
         eps = 2.0 ** level * tolerance
         converged = 1.0 - eps <= eta[b] <= 1.0 + eps
@@ -570,7 +575,8 @@ def record_start(slots, history, pairs, state):
         history.level[b, 0], history.iteration[b, 0] = slots.level[b], 0
         history.mean_distance[b, 0] = distance[f] / n_pairs[f]
         history.error[b, 0], history.n_pairs[b, 0] = state.error[f], n_pairs[f]
-        history.q[b, 0], history.T[b, 0], history.eta[b, 0] = state.q[f], state.T[f], np.nan
+        copy_into(history.q[b, 0], state.q[f]), copy_into(history.T[b, 0], state.T[f])
+        history.eta[b, 0] = np.nan
         history.n_ipfo[b, 0] = 0
         count[b] = 1
 

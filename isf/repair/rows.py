@@ -16,6 +16,7 @@ import numpy as np
 
 from ..collision.surface_distance import plane_estimates
 from ..collision.voxels import boxes_clear, points_distance_below
+from ..compiled.arrays import copy_into
 from ..compiled.kernels import kernel
 from ..fitting.engine_kernel import plane_distance
 from ..search.nearest import SearchArrays, nearest_with_guesses
@@ -85,7 +86,7 @@ def deepest_rows(violation, element, n_elements, activation, max_rows):
     out = np.empty(n_kept.sum(), np.int64)
     n = 0
     for e in range(n_elements):
-        out[n:n + n_kept[e]] = kept[e, :n_kept[e]]
+        copy_into(out[n:n + n_kept[e]], kept[e, :n_kept[e]])
         n += n_kept[e]
     return out
 
@@ -164,11 +165,13 @@ def sample_rows(world, guess, floor, element, known_violation, known_element, li
     dist, nearest = np.full(m, np.inf), np.full(m, -1, np.int64)
     rows = np.flatnonzero(look)
     d, n = nearest_with_guesses(world[rows], guess[rows], reach * reach, obj_points, obj_tree)
-    dist[rows], nearest[rows] = d, n
+    for k in range(len(rows)):
+        dist[rows[k]], nearest[rows[k]] = d[k], n[k]
     far = np.flatnonzero((nearest < 0) & ~outside)  # beyond reach, maybe inside
     if len(far):
         d, n = nearest_with_guesses(world[far], guess[far], np.inf, obj_points, obj_tree)
-        dist[far], nearest[far] = d, n
+        for k in range(len(far)):
+            dist[far[k]], nearest[far[k]] = d[k], n[k]
     close = np.empty(m, np.int64)
     lower = np.empty(m)
     n_close = 0
@@ -210,7 +213,7 @@ def sample_rows(world, guess, floor, element, known_violation, known_element, li
         for j in range(len(candidates)):
             c = candidates[j]
             violation[c] = floor[c] - height[j]
-            normals[c] = plane_normals[plane[j]]
+            copy_into(normals[c], plane_normals[plane[j]])
             exact[c] = True
     keep = np.flatnonzero(exact)
     return close[keep], normals[keep], violation[keep], nearest

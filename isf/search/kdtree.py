@@ -84,8 +84,8 @@ def build(points, leaf_size):
         node += 1
         if b - a <= leaf_size:
             continue
-        lo[:] = points[order[a]]
-        hi[:] = lo
+        for d in range(3):
+            lo[d] = hi[d] = points[order[a], d]
         for i in range(a + 1, b):
             for d in range(3):
                 lo[d] = min(lo[d], points[order[i], d])
@@ -101,7 +101,8 @@ def build(points, leaf_size):
         rank = np.argsort(key[: b - a], kind="mergesort")  # stable: ties keep their order
         for i in range(b - a):
             moved[i] = order[a + rank[i]]
-        order[a:b] = moved[: b - a]
+        for i in range(b - a):
+            order[a + i] = moved[i]
         middle = (a + b) // 2
         parent = node - 1
         axis[parent], split[parent], left[parent] = widest, points[order[middle], widest], n_nodes
@@ -109,7 +110,10 @@ def build(points, leaf_size):
         start[n_nodes + 1], stop[n_nodes + 1] = middle, b
         n_nodes += 2
     left = left[:n_nodes].copy()
-    right = np.where(left >= 0, left + 1, -1)
+    right = np.full(n_nodes, -1, np.int64)  # a leaf's children: none
+    for i in range(n_nodes):
+        if left[i] >= 0:
+            right[i] = left[i] + 1
     return KDTree(points[order], order, start[:n_nodes].copy(), stop[:n_nodes].copy(),
                   axis[:n_nodes].copy(), split[:n_nodes].copy(), left, right)
 
