@@ -27,9 +27,15 @@ point; closing as for ``allegro-right``), and
 size) on each object scaled uniformly so that its smallest principal width is
 ``SCALED_FILL`` of the opening (the same 0.3 kg: only the geometry is scaled).
 
+With ``--every-valid``, every valid grasp of each ``quality`` plan is simulated too, not only
+the top 5: how many of them hold, by distance of their contacts from the centre of mass, how
+well the smallest gravity margin separates held from failed grasps (area under the ROC
+curve), and the best top-1 and top-5 that any ranking of the plan's grasps could reach.
+
 Run from the repository root:
     python bench/bench_hold.py [--quick] [--grippers paper-parallel,franka-hand]
                                [--objects Banana,MustardBottle] [--raw FILE.json] [--out FILE.md]
+                               [--every-valid]
 """
 
 from __future__ import annotations
@@ -139,6 +145,57 @@ def candidates(method: str, gripper, obj, plan_antipodal) -> list[tuple[np.ndarr
     return out
 
 
+#: Bands of the distance from the contacts' centroid to the centre of mass, metres.
+COM_BANDS = (0.0, 0.01, 0.02, 0.03, np.inf)
+
+
+def every_valid(gripper, obj, body, settings) -> dict:
+    """Every valid grasp of one ``quality`` plan simulated: their outcomes, distances from the
+    centre of mass (m) and smallest gravity margins, in the plan's order."""
+    grasps = [g for g in isf.plan(gripper, obj, samples=SAMPLES, seed=SEED).grasps if g.valid]
+    return {"outcomes": [validate_grasp(gripper, body, g.T_object_gripper, g.q, settings)
+                         .outcome.value for g in grasps],
+            "com_offsets": [g.quality.com_offset for g in grasps],
+            "margins": [g.quality.min_margin for g in grasps]}
+
+
+def roc_area(scores, positive) -> float:
+    """Area under the ROC curve of ``scores`` separating ``positive`` (bools) from the rest:
+    the chance that a random positive scores above a random negative (ties count half)."""
+    pos = [s for s, p in zip(scores, positive) if p]
+    neg = [s for s, p in zip(scores, positive) if not p]
+    if not pos or not neg:
+        return float("nan")
+    return float(np.mean([(a > b) + 0.5 * (a == b) for a in pos for b in neg]))
+
+
+def every_valid_report(rows: list[dict]) -> list[str]:
+    """The ``--every-valid`` section: per gripper, what the simulated valid grasps say."""
+    lines = []
+    for name in dict.fromkeys(r["gripper"] for r in rows):
+        mine = [r for r in rows if r["gripper"] == name]
+        held = [o == "held" for r in mine for o in r["outcomes"]]
+        offsets = np.array([c for r in mine for c in r["com_offsets"]])
+        margins = [m for r in mine for m in r["margins"]]
+        held_of = [sum(o == "held" for o in r["outcomes"]) for r in mine]
+        objects = ", ".join(f"{r['object']} {h}/{len(r['outcomes'])}" for r, h in zip(mine, held_of))
+        bands = []
+        for lo, hi in zip(COM_BANDS, COM_BANDS[1:]):
+            inside = (offsets >= lo) & (offsets < hi)
+            label = f"{1e3 * lo:.0f}-{1e3 * hi:.0f} mm" if np.isfinite(hi) else f"from {1e3 * lo:.0f} mm"
+            bands.append(f"{label}: {int(np.sum(inside & np.array(held, bool)))}/{int(inside.sum())}")
+        best1 = sum(h > 0 for h in held_of)
+        best5 = sum(min(TOP, h) for h in held_of)
+        lines.append(
+            f"* `{name}`: {sum(held)} of {len(held)} valid grasps held in all six directions "
+            f"({objects}); by distance of the contacts from the centre of mass: "
+            f"{', '.join(bands)}. Area under the ROC curve of the smallest margin "
+            f"{roc_area(margins, held):.2f}, of the distance (nearer first) "
+            f"{roc_area(list(-offsets), held):.2f}. The best any ranking of these plans could "
+            f"reach: top-1 {best1}/{len(mine)}, top-5 {best5}/{TOP * len(mine)}.")
+    return lines
+
+
 def main() -> None:
     parser = _common.base_parser(__doc__.splitlines()[0], repeats=1, budget=0.0)
     parser.add_argument("--grippers", default=",".join(GRIPPERS), help=f"comma-separated, of {GRIPPERS}")
@@ -148,6 +205,8 @@ def main() -> None:
                         help="report the outcomes previous --raw runs wrote, simulating nothing")
     parser.add_argument("--methods", default=None,
                         help="comma-separated, of fit, quality, antipodal (default: all available)")
+    parser.add_argument("--every-valid", action="store_true",
+                        help="also simulate every valid grasp of each quality plan")
     parser.set_defaults(deadline=0.0)
     args = parser.parse_args()
     grippers = args.grippers.split(",")
@@ -187,6 +246,8 @@ def main() -> None:
                                  "seconds": time.perf_counter() - t0})
                     print(f"# {label}: {' '.join(rows[-1]['outcomes'])} "
                           f"({rows[-1]['seconds']:.0f} s)", flush=True)
+                    if args.every_valid and method == "quality":
+                        rows[-1]["every_valid"] = every_valid(gripper, obj, body, settings)
                     if args.raw:
                         Path(args.raw).write_text(json.dumps(rows, indent=1))
     body_rows = []
@@ -220,8 +281,12 @@ def main() -> None:
             "H held in all six directions, S slipped (in at least one), E ejected while closing, "
             "P penetrating; the digit is how many directions held. A method that returned fewer than "
             f"{TOP} grasps for an object counts each missing one as a failure.")
+    valid_rows = [{"gripper": r["gripper"], "object": r["object"], **r["every_valid"]}
+                  for r in rows if "every_valid" in r]
+    extra = (["### Every valid grasp of the quality plans", *every_valid_report(valid_rows)]
+             if valid_rows else [])
     _common.finish("bench_hold: do the top grasps hold in physics (isf validate)?",
-                   ["### Top grasps held", text, table, "### By object", per_object,
+                   ["### Top grasps held", text, table, "### By object", per_object, *extra,
                     *deadline.note()], started, header, args.out)
 
 

@@ -6,7 +6,11 @@ ways from the same grasps: by quality (``rank="quality"``, the default) and by f
 quality records). Reported per ranking: the top-1 grasp's epsilon and smallest gravity margin
 (:mod:`isf.quality`, friction 0.5, 0.3 kg, 20 N grip), the top-5 means, and how many of the
 top 5 are distinct poses (TCPs more than 1 cm or 30 degrees apart); the ranking overhead
-(``stats.quality_time`` over the rest of the plan); and, for the parallel grippers, the same
+(``stats.quality_time`` over the rest of the plan, wall time; and in CPU time: the ranking's
+quality re-measured below, over the plan's CPU time less it) and the time per valid grasp of that
+ranking's quality against computing every metric (epsilon, force closure, every load) of
+every valid grasp, both on the plan's grasps in the same process (CPU time); and, for the parallel
+grippers, the same
 figures of the antipodal baseline (bench/antipodal_baseline.py, its top 5) scored by the same
 metrics.
 
@@ -16,7 +20,7 @@ Usage:
 
 from __future__ import annotations
 
-import _common  # noqa: F401  (first: pins the threads)
+import _common  # first: pins the threads
 
 import argparse
 import statistics
@@ -29,8 +33,7 @@ import numpy as np
 
 import isf
 from antipodal_baseline import plan_antipodal
-from bench_scenes import tagged_franka_hand
-from isf.quality import grasp_quality, object_properties
+from isf.quality import grasp_quality, object_properties, quality_rank_key
 
 YCB = Path("/work/shared/data/ycb")
 GRIPPERS = ("paper-parallel", "flat-parallel", "three-finger", "franka-hand")
@@ -56,14 +59,41 @@ def summary(qualities, poses) -> dict:
             "distinct5": distinct(poses[:5])}
 
 
+def per_grasp_times(gripper, obj, grasps, config) -> tuple[float, float]:
+    """CPU milliseconds per grasp (this process's, so that other processes on the machine do
+    not count) of ``grasps``' quality as the ranking computes it (its key), and with every
+    metric read (the whole record), each the best of 3."""
+    if not grasps:
+        return float("nan"), float("nan")
+    times = {"ranked": [], "full": []}
+    for _ in range(3):
+        for kind in times:
+            started = time.process_time()
+            properties = object_properties(obj)
+            for g in grasps:
+                quality = grasp_quality(gripper, obj, g.T_object_gripper, g.q, config, properties)
+                if kind == "full":
+                    quality.to_dict()
+                else:
+                    quality_rank_key(quality, g.fit.mean_distance)
+            times[kind].append(1e3 * (time.process_time() - started) / len(grasps))
+    return min(times["ranked"]), min(times["full"])
+
+
 def one(gripper, path: Path, samples: int) -> dict:
     obj = isf.load_object(path)
+    cpu_started = time.process_time()
     result = isf.plan(gripper, obj, samples=samples, seed=0, diversity=None)
+    cpu_plan = time.process_time() - cpu_started
     tcp = gripper.T_root_tcp
     by_quality = [g for g in result.grasps if g.valid]
     by_fit = sorted(by_quality, key=lambda g: replace(g, quality=None).sort_key())
     rest = result.stats.total_time - result.stats.quality_time
+    ranked, full = per_grasp_times(gripper, obj, by_quality, result.quality)
+    cpu_ranking = 1e-3 * ranked * len(by_quality) if by_quality else 0.0
     row = {"valid": result.stats.valid, "overhead": result.stats.quality_time / rest,
+           "cpu_overhead": cpu_ranking / max(cpu_plan - cpu_ranking, 1e-9),
+           "ms_ranked": ranked, "ms_full": full,
            "quality": summary([g.quality for g in by_quality],
                               [g.T_object_gripper @ tcp for g in by_quality]),
            "fit": summary([g.quality for g in by_fit], [g.T_object_gripper @ tcp for g in by_fit])}
@@ -88,11 +118,13 @@ def main() -> None:
     objects = args.object or sorted(p.stem for p in YCB.glob("*.obj"))
     folder = Path(tempfile.mkdtemp())
     for name in args.gripper or GRIPPERS:
-        gripper = tagged_franka_hand(folder) if name == "franka-hand" else isf.load_gripper(name)
+        gripper = _common.tagged_franka_hand(folder) if name == "franka-hand" else isf.load_gripper(name)
         rows = {}
         for obj in objects:
             rows[obj] = row = one(gripper, YCB / f"{obj}.obj", args.samples)
-            line = [f"{name:14s} {obj:15s} valid {row['valid']:2d} overhead {row['overhead']:5.1%}"]
+            line = [f"{name:14s} {obj:15s} valid {row['valid']:2d} overhead {row['overhead']:5.1%} "
+                    f"(CPU {row['cpu_overhead']:5.1%}) "
+                    f"ms/grasp {row['ms_ranked']:.2f} (every metric {row['ms_full']:.2f})"]
             for kind in ("fit", "quality", "baseline"):
                 if kind in row:
                     s = row[kind]
@@ -101,7 +133,13 @@ def main() -> None:
                                 f"{s['holds5']} distinct {s['distinct5']}")
             print(" | ".join(line), flush=True)
         over = [r["overhead"] for r in rows.values()]
-        print(f"{name}: overhead median {statistics.median(over):.1%} worst {max(over):.1%}")
+        ranked = [r["ms_ranked"] for r in rows.values()]
+        full = [r["ms_full"] for r in rows.values()]
+        cpu = [r["cpu_overhead"] for r in rows.values()]
+        print(f"{name}: overhead median {statistics.median(over):.1%} worst {max(over):.1%} "
+              f"(CPU time: {statistics.median(cpu):.1%} / {max(cpu):.1%}); "
+              f"ms per valid grasp median {np.nanmedian(ranked):.2f} worst {np.nanmax(ranked):.2f} "
+              f"(every metric: {np.nanmedian(full):.2f} / {np.nanmax(full):.2f})")
         for kind in ("fit", "quality", "baseline"):
             cells = [r[kind] for r in rows.values() if kind in r]
             if cells:

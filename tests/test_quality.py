@@ -18,6 +18,8 @@ from isf.quality import (
     grasp_contacts,
     gravity_loads,
 )
+from isf.quality.gravity import resists_loads
+from isf.quality.wrenches import positively_spans
 
 ORIGIN = np.zeros(3)
 DIRECTIONS = np.array(list(SIX_DIRECTIONS.values()))
@@ -146,3 +148,77 @@ def test_com_offset_is_the_contacts_centroid_distance_from_the_centre_of_mass():
     assert centred.com_offset == pytest.approx(0.0, abs=1e-12)
     assert shifted.com_offset == pytest.approx(0.02)
     assert centred.to_dict()["com_offset"] == centred.com_offset
+
+
+def test_resisting_a_load_agrees_with_the_largest_load_of_the_lp():
+    """Two methods: the feasibility test (non-negative least squares) says a load is resisted
+    exactly where the LP's largest load (HiGHS) reaches it, for loads just below and above."""
+    rng = np.random.default_rng(0)
+    cases = [(antipodal_patches(), np.array([0.01, 0.0, 0.02]))]
+    for _ in range(6):  # random contacts on a sphere of radius 3 cm, pushing inwards
+        points = rng.normal(size=(int(rng.integers(2, 6)), 3))
+        points = 0.03 * points / np.linalg.norm(points, axis=1, keepdims=True)
+        cases.append((Contacts.from_points(points, -points), rng.normal(scale=0.01, size=3)))
+    for contacts, com in cases:
+        largest = gravity_loads(contacts, 0.5, com, DIRECTIONS, 20.0)
+        for factor in (0.98, 1.02):
+            for d, load in zip(DIRECTIONS, largest):
+                if load == 0.0 and factor < 1:
+                    continue
+                expected = factor < 1
+                got = resists_loads(contacts, 0.5, com, d[None], factor * max(load, 0.1), 20.0,
+                                    torque_scale=0.03)[0]
+                assert got == expected, (load, factor)
+
+
+def _random_contact_sets(seed: int = 1, count: int = 12):
+    """Point contacts on a sphere of radius 3 cm pushing inwards, 1 to 5 of them, and a centre
+    of mass near the sphere's centre."""
+    rng = np.random.default_rng(seed)
+    for _ in range(count):
+        points = rng.normal(size=(int(rng.integers(1, 6)), 3))
+        points = 0.03 * points / np.linalg.norm(points, axis=1, keepdims=True)
+        yield Contacts.from_points(points, -points), rng.normal(scale=0.01, size=3)
+
+
+def test_positive_span_agrees_with_the_hull():
+    """Two methods for force closure: the origin inside the hull (qhull) and a strictly
+    positive zero combination of wrenches spanning six dimensions (least squares)."""
+    seen = set()
+    for contacts, com in [(antipodal_patches(), ORIGIN), *_random_contact_sets()]:
+        for mu in (0.0, 0.5):
+            wrenches = contact_wrenches(contacts, mu, com, 0.03)
+            closure = force_closure(wrenches)
+            assert positively_spans(wrenches) == closure
+            seen.add(closure)
+    assert seen == {True, False}
+
+
+def test_some_load_is_resisted_exactly_where_the_lp_finds_one():
+    """Without a bound on the grip the test says whether the LP's largest load is above 0."""
+    seen = set()
+    for contacts, com in [(antipodal_patches(), ORIGIN), *_random_contact_sets(seed=2)]:
+        for mu in (0.0, 0.3):
+            largest = gravity_loads(contacts, mu, com, DIRECTIONS, 20.0)
+            some = resists_loads(contacts, mu, com, DIRECTIONS, 1.0, None, torque_scale=0.03)
+            np.testing.assert_array_equal(some, largest > 1e-9)
+            seen.update(some)
+    assert seen == {True, False}
+
+
+def test_held_margin_is_the_smallest_margin_capped_at_the_target():
+    contacts = antipodal_patches()
+    cases = [(contacts, np.array([0, 0, offset]), mass)
+             for offset, mass in ((0.0, 0.3), (0.05, 0.3), (0.1, 0.3), (0.0, 5.0))]
+    cases += [(c, com, 0.3) for c, com in _random_contact_sets(seed=3)]
+    held = set()
+    for contacts, com, mass in cases:
+        for mu in (0.0, 0.5):
+            quality = contacts_quality(contacts, ObjectProperties(com, 0.12),
+                                       QualityConfig(mass=mass, friction=mu))
+            assert quality.held_margin == min(quality.min_margin, 1.0)
+            assert quality.holds == (quality.min_margin >= 1.0)
+            record = quality.to_dict()  # plain Python types, as JSON needs
+            assert type(record["force_closure"]) is bool and type(record["epsilon"]) is float
+            held.add(quality.held_margin)
+    assert 0.0 in held and 1.0 in held and any(0 < h < 1 for h in held)

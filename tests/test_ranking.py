@@ -48,6 +48,27 @@ def test_quality_ranking_puts_resisting_grasps_first(plans, paper_gripper, cylin
     assert best.com_offset == pytest.approx(np.linalg.norm(centroid - properties.center_of_mass))
 
 
+def _full_key(grasp) -> tuple:
+    """The ranking key with every metric computed, epsilon included (the reference order)."""
+    q = grasp.quality
+    quality = ((1, 0.0, 0.0, 0.0) if q is None else
+               (0, -min(q.min_margin, MARGIN_TARGET), q.com_offset, -q.epsilon))
+    return (not grasp.collision_free, not grasp.in_contact, not grasp.one_piece,
+            grasp.settled is False, *quality, grasp.fit.mean_distance, grasp.sample_index)
+
+
+@pytest.mark.parametrize("gripper_name, shape", [("paper-parallel", "shape:cylinder"),
+                                                 ("flat-parallel", "shape:box"),
+                                                 ("three-finger", "shape:cylinder")])
+def test_ranking_order_is_that_of_every_metric_computed(gripper_name, shape):
+    """The planner reads epsilon only to break ties and the margin's value only below the
+    target; its order is the one every metric, computed in full, gives."""
+    result = isf.plan(isf.load_gripper(gripper_name), isf.open_object(shape), samples=16,
+                      seed=3, diversity=None)
+    assert [g.sample_index for g in result.grasps] == \
+        [g.sample_index for g in sorted(result.grasps, key=_full_key)]
+
+
 def test_friction_changes_the_quality(paper_gripper, cylinder):
     slippery = isf.plan(paper_gripper, cylinder, samples=6, seed=0,
                         quality=QualityConfig(friction=0.1))

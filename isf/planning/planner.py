@@ -211,7 +211,7 @@ class PlanStats:
         surface_points: object points the run matched against (see ``working_spacing`` of
             :func:`plan`); 0 when not recorded.
         workers: threads that evaluated samples (see :func:`plan`).
-        quality_time: time spent computing the valid grasps' quality for the ranking, seconds
+        quality_time: time spent computing the valid grasps' quality and sorting by it, seconds
             (part of ``total_time``; 0 with ``rank="fit"``).
     """
 
@@ -499,17 +499,16 @@ def plan(
     fit_time = evaluations.fit_time + sum(j.fit_time for j in judges)
     collision_time = sum(j.collision_time for j in judges)
 
-    quality_time = 0.0
+    quality_started = time.perf_counter()
     if rank == "quality":
-        quality_started = time.perf_counter()
         base = QualityConfig() if quality is None else quality
         quality = replace(base, contact_model=replace(base.contact_model,
                                                       contact_distance=config.contact_distance))
         grasps = _with_quality(grasps, gripper, obj, quality)
-        quality_time = time.perf_counter() - quality_started
     else:
         quality = None
-    grasps.sort(key=Grasp.sort_key)
+    grasps.sort(key=Grasp.sort_key)  # a tie of the quality ranking reads epsilon here
+    quality_time = time.perf_counter() - quality_started if rank == "quality" else 0.0
     if diversity is not None:  # after the ranking: distinct grasps first
         diversity = replace(diversity, symmetry=diversity.order(gripper))
         grasps = _distinct_first(grasps, gripper, diversity)

@@ -18,7 +18,7 @@ from .grasp_quality import (
     object_properties,
     quality_rank_key,
 )
-from .gravity import GRAVITY, SIX_DIRECTIONS, gravity_loads
+from .gravity import GRAVITY, SIX_DIRECTIONS, gravity_loads, resists_loads
 from .wrenches import (
     CONE_EDGES,
     WrenchSpace,
@@ -26,10 +26,11 @@ from .wrenches import (
     contact_wrenches,
     epsilon_quality,
     force_closure,
+    positively_spans,
 )
 
 __all__ = ["CONE_EDGES", "ContactModelConfig", "Contacts", "GRAVITY", "GraspQuality",
            "MARGIN_TARGET", "ObjectProperties", "QualityConfig", "SIX_DIRECTIONS", "WrenchSpace",
            "cone_edges", "contact_wrenches", "contacts_quality", "epsilon_quality",
            "force_closure", "grasp_contacts", "grasp_quality", "gravity_loads",
-           "object_properties", "quality_rank_key"]
+           "object_properties", "positively_spans", "quality_rank_key", "resists_loads"]

@@ -161,7 +161,9 @@ def _patch_labels(points: np.ndarray, normals: np.ndarray,
     """Patch label of each touching point of one surface (M,) and the number of patches: the
     connected components of the graph joining points within ``patch_gap`` whose normals differ
     by less than ``patch_angle`` (labels spread as the smallest index of a component)."""
-    near = np.einsum("ijk,ijk->ij", points[:, None] - points[None], points[:, None] - points[None])
+    gram = points @ points.T
+    squared = np.diag(gram)
+    near = squared[:, None] + squared[None, :] - 2.0 * gram  # squared distances
     linked = (near <= config.patch_gap ** 2) & (normals @ normals.T >= np.cos(config.patch_angle))
     labels = np.arange(len(points))
     while True:

@@ -18,14 +18,15 @@ then the fitting error (mean point-to-plane distance).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property, total_ordering
 
 import numpy as np
 
 from ..gripper.model import Gripper
 from ..object.surface import ObjectSurface
 from .contacts import ContactModelConfig, Contacts, grasp_contacts
-from .gravity import GRAVITY, SIX_DIRECTIONS, gravity_loads
-from .wrenches import CONE_EDGES, WrenchSpace, contact_wrenches
+from .gravity import GRAVITY, SIX_DIRECTIONS, gravity_loads, resists_loads
+from .wrenches import CONE_EDGES, WrenchSpace, contact_wrenches, positively_spans
 
 __all__ = ["GraspQuality", "MARGIN_TARGET", "ObjectProperties", "QualityConfig",
            "contacts_quality", "grasp_quality", "object_properties", "quality_rank_key"]
@@ -33,6 +34,8 @@ __all__ = ["GraspQuality", "MARGIN_TARGET", "ObjectProperties", "QualityConfig",
 MARGIN_TARGET = 1.0
 """Smallest gravity margin (multiples of the object's weight) at which :func:`quality_rank_key`
 counts a grasp as holding in every direction."""
+
+_DIRECTIONS = np.array(list(SIX_DIRECTIONS.values()))
 
 
 @dataclass(frozen=True)
@@ -100,34 +103,103 @@ def object_properties(obj: ObjectSurface) -> ObjectProperties:
     return ObjectProperties(center, max(radius, 1e-6))
 
 
-@dataclass(frozen=True)
 class GraspQuality:
-    """How well a grasp's contacts resist loads (see :mod:`isf.quality`).
+    """How well a grasp's contacts resist loads (see :mod:`isf.quality`), from its contacts on an
+    object with given :class:`ObjectProperties` under a :class:`QualityConfig`.
+
+    What the ranking needs is computed at once: :attr:`com_offset` and :attr:`held_margin`,
+    which for a grasp that holds its weight in every direction is a feasibility test per
+    direction (:func:`isf.quality.gravity.resists_loads`), no wrench space. The grasp wrench
+    space (:class:`isf.quality.wrenches.WrenchSpace`) and the largest loads are built when one
+    of :attr:`epsilon`, :attr:`force_closure`, :attr:`gravity_load`, :attr:`gravity_margin` or
+    :attr:`min_margin` is first read (a plan file writes them for the grasps it keeps), then kept.
 
     Attributes:
         friction: the friction coefficient used.
-        epsilon: Ferrari-Canny epsilon of the grasp wrench space (torques over the object
-            radius), newtons per newton of total normal force; 0 without force closure.
-        force_closure: the origin lies strictly inside the grasp wrench space.
-        gravity_load: per gravity direction (object frame, :data:`isf.quality.gravity.SIX_DIRECTIONS`),
-            the largest load resisted, newtons.
-        gravity_margin: the same over the object's weight (``mass * g``).
-        contacts: point contacts of the contact model.
-        patches: contact patches.
+        contacts: number of point contacts of the contact model.
+        patches: number of contact patches.
         radius: the object radius torques were divided by, metres.
         com_offset: distance from the centroid of the contacts to the centre of mass, metres
             (the object radius when there are no contacts).
+        held_margin: the smallest gravity margin capped at :data:`MARGIN_TARGET`:
+            ``min(min_margin, MARGIN_TARGET)``.
     """
 
-    friction: float
-    epsilon: float
-    force_closure: bool
-    gravity_load: dict[str, float]
-    gravity_margin: dict[str, float]
-    contacts: int
-    patches: int
-    radius: float
-    com_offset: float
+    def __init__(self, contacts: Contacts, properties: ObjectProperties,
+                 config: QualityConfig | None = None):
+        config = QualityConfig() if config is None else config
+        self._contacts, self._properties, self._config = contacts, properties, config
+        self.friction = float(config.friction)
+        self.contacts = contacts.count
+        self.patches = contacts.patches
+        self.radius = float(properties.radius)
+        self.com_offset = (float(np.linalg.norm(contacts.points.mean(axis=0)
+                                                - properties.center_of_mass))
+                           if contacts.count else self.radius)
+        weight = config.mass * GRAVITY
+        resisted = resists_loads(contacts, config.friction, properties.center_of_mass,
+                                 _DIRECTIONS, MARGIN_TARGET * weight, config.grip_force,
+                                 config.cone_edges, properties.radius, until_failure=True)
+        if resisted.all():
+            self.held_margin = MARGIN_TARGET
+        elif not self._origin_may_be_inside and not resists_loads(
+                contacts, config.friction, properties.center_of_mass, _DIRECTIONS, 1.0, None,
+                config.cone_edges, properties.radius, until_failure=True).all():
+            self.held_margin = 0.0  # a direction in which no grip resists any load
+        else:
+            self.held_margin = min(self.min_margin, MARGIN_TARGET)
+
+    def __repr__(self) -> str:
+        return (f"GraspQuality(friction={self.friction}, contacts={self.contacts}, "
+                f"patches={self.patches}, com_offset={self.com_offset:.4g}, "
+                f"held_margin={self.held_margin:.4g})")
+
+    @cached_property
+    def _wrenches(self) -> np.ndarray:
+        contacts, properties, config = self._contacts, self._properties, self._config
+        return (contact_wrenches(contacts, config.friction, properties.center_of_mass,
+                                 properties.radius, config.cone_edges)
+                if contacts.count else np.empty((0, 6)))
+
+    @cached_property
+    def _space(self) -> WrenchSpace:
+        return WrenchSpace(self._wrenches)
+
+    @cached_property
+    def _origin_may_be_inside(self) -> bool:
+        """False when the origin is outside the wrench space, shown without its hull
+        (:func:`isf.quality.wrenches.positively_spans`): the wrench space is then not built."""
+        return "_space" in self.__dict__ or positively_spans(self._wrenches)
+
+    @property
+    def epsilon(self) -> float:
+        """Ferrari-Canny epsilon of the grasp wrench space (torques over the object radius),
+        newtons per newton of total normal force; 0 without force closure."""
+        return self._space.epsilon if self._origin_may_be_inside else 0.0
+
+    @property
+    def force_closure(self) -> bool:
+        """The origin lies strictly inside the grasp wrench space."""
+        return bool(self._origin_may_be_inside and self._space.force_closure)
+
+    @cached_property
+    def gravity_load(self) -> dict[str, float]:
+        """Per gravity direction (object frame, :data:`isf.quality.gravity.SIX_DIRECTIONS`), the
+        largest load resisted, newtons."""
+        config, properties = self._config, self._properties
+        if self.force_closure:  # where the ray of each load leaves the wrench space
+            loads = config.grip_force * self._space.reach(
+                np.hstack([-_DIRECTIONS, np.zeros((len(_DIRECTIONS), 3))]))
+        else:
+            loads = gravity_loads(self._contacts, config.friction, properties.center_of_mass,
+                                  _DIRECTIONS, config.grip_force, config.cone_edges)
+        return {n: float(v) for n, v in zip(SIX_DIRECTIONS, loads)}
+
+    @property
+    def gravity_margin(self) -> dict[str, float]:
+        """:attr:`gravity_load` over the object's weight (``mass * g``)."""
+        weight = self._config.mass * GRAVITY
+        return {n: v / weight for n, v in self.gravity_load.items()}
 
     @property
     def min_margin(self) -> float:
@@ -137,7 +209,7 @@ class GraspQuality:
     @property
     def holds(self) -> bool:
         """True when the grasp resists its weight in every direction (margin >= 1)."""
-        return self.min_margin >= MARGIN_TARGET
+        return self.held_margin >= MARGIN_TARGET
 
     def to_dict(self) -> dict:
         """A JSON-ready record."""
@@ -151,24 +223,7 @@ class GraspQuality:
 def contacts_quality(contacts: Contacts, properties: ObjectProperties,
                      config: QualityConfig | None = None) -> GraspQuality:
     """The :class:`GraspQuality` of given contacts on an object with ``properties``."""
-    config = QualityConfig() if config is None else config
-    center, radius = properties.center_of_mass, properties.radius
-    directions = np.array(list(SIX_DIRECTIONS.values()))
-    space = WrenchSpace(contact_wrenches(contacts, config.friction, center, radius,
-                                         config.cone_edges) if contacts.count else np.empty((0, 6)))
-    if space.force_closure:  # where the ray of each load leaves the wrench space
-        loads = config.grip_force * space.reach(np.hstack([-directions, np.zeros((6, 3))]))
-    else:
-        loads = gravity_loads(contacts, config.friction, center, directions, config.grip_force,
-                              config.cone_edges)
-    weight = config.mass * GRAVITY
-    return GraspQuality(
-        friction=float(config.friction), epsilon=space.epsilon, force_closure=space.force_closure,
-        gravity_load={n: float(v) for n, v in zip(SIX_DIRECTIONS, loads)},
-        gravity_margin={n: float(v / weight) for n, v in zip(SIX_DIRECTIONS, loads)},
-        contacts=contacts.count, patches=contacts.patches, radius=float(radius),
-        com_offset=float(np.linalg.norm(contacts.points.mean(axis=0) - center))
-        if contacts.count else float(radius))
+    return GraspQuality(contacts, properties, config)
 
 
 def grasp_quality(gripper: Gripper, obj: ObjectSurface, T_object_gripper: np.ndarray,
@@ -184,12 +239,34 @@ def grasp_quality(gripper: Gripper, obj: ObjectSurface, T_object_gripper: np.nda
     return contacts_quality(contacts, properties, config)
 
 
+@total_ordering
+class _HigherEpsilonFirst:
+    """A sort-key element that orders grasps by higher epsilon first and reads the epsilon
+    (building the wrench space) only when the elements before it in the key tie."""
+
+    __slots__ = ("quality",)
+    __hash__ = None
+
+    def __init__(self, quality: GraspQuality | None):
+        self.quality = quality
+
+    def _epsilon(self) -> float:
+        return 0.0 if self.quality is None else self.quality.epsilon
+
+    def __eq__(self, other) -> bool:
+        return self._epsilon() == other._epsilon()
+
+    def __lt__(self, other) -> bool:
+        return self._epsilon() > other._epsilon()
+
+
 def quality_rank_key(quality: GraspQuality | None, mean_distance: float) -> tuple:
     """Sort key (lower first) of a grasp by its quality (smallest gravity margin up to
-    :data:`MARGIN_TARGET`, then :attr:`GraspQuality.com_offset`, then epsilon), then its fitting
-    error ``mean_distance`` (metres); a grasp without a quality record (None) comes after every
-    grasp with one."""
+    :data:`MARGIN_TARGET`, :attr:`GraspQuality.held_margin`, then
+    :attr:`GraspQuality.com_offset`, then higher epsilon, read only to break a tie of the two
+    before it), then its fitting error ``mean_distance`` (metres); a grasp without a quality
+    record (None) comes after every grasp with one."""
     if quality is None:
-        return (1, 0.0, 0.0, 0.0, mean_distance)
-    return (0, -min(quality.min_margin, MARGIN_TARGET), quality.com_offset, -quality.epsilon,
+        return (1, 0.0, 0.0, _HigherEpsilonFirst(None), mean_distance)
+    return (0, -quality.held_margin, quality.com_offset, _HigherEpsilonFirst(quality),
             mean_distance)

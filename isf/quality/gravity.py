@@ -22,18 +22,25 @@ the grasp wrench space (:meth:`isf.quality.wrenches.WrenchSpace.reach`, the fast
 This is the classic grasp-force optimisation under friction-cone constraints (e.g. Buss,
 Hashimoto & Moore 1996; Miller & Allen's GraspIt! reports the same resisted wrench), asked for the
 six gravity directions of a hold test.
+
+Whether the contacts resist one given load ``s`` (not the largest) is the feasibility of the
+same constraints at that ``s`` (:func:`resists_loads`): with a slack ``sigma >= 0`` on the budget,
+a system ``A x = b, x >= 0`` that non-negative least squares (Lawson & Hanson 1974,
+:func:`scipy.optimize.nnls`) solves exactly, residual zero, when it is feasible: about 0.2 ms
+for the six directions of a parallel gripper's grasp, against 2.5 ms for the linear programme
+above and 1 to 2 ms for the wrench space's hull.
 """
 
 from __future__ import annotations
 
 import numpy as np
 from scipy.linalg import block_diag
-from scipy.optimize import linprog
+from scipy.optimize import linprog, nnls
 
 from .contacts import Contacts
 from .wrenches import CONE_EDGES, cone_edges
 
-__all__ = ["GRAVITY", "SIX_DIRECTIONS", "gravity_loads"]
+__all__ = ["GRAVITY", "RESIDUAL_TOLERANCE", "SIX_DIRECTIONS", "gravity_loads", "resists_loads"]
 
 GRAVITY = 9.81
 """Standard gravity, m/s^2."""
@@ -41,6 +48,20 @@ GRAVITY = 9.81
 SIX_DIRECTIONS = {"+x": (1.0, 0.0, 0.0), "-x": (-1.0, 0.0, 0.0), "+y": (0.0, 1.0, 0.0),
                   "-y": (0.0, -1.0, 0.0), "+z": (0.0, 0.0, 1.0), "-z": (0.0, 0.0, -1.0)}
 """Gravity directions of a hold test, object frame, by name."""
+
+RESIDUAL_TOLERANCE = 1e-9
+""":func:`resists_loads` counts a load as resisted when the least-squares residual of its
+balance is below this fraction of the load plus the normal-force budget (an exact solution
+leaves rounding, about 1e-15 of them)."""
+
+
+def _edge_forces_and_torques(contacts: Contacts, friction: float, center: np.ndarray,
+                             edges: int) -> tuple[np.ndarray, np.ndarray]:
+    """Edge forces (C, edges, 3) of the contacts' linearised cones and their torques about
+    ``center`` (3,) (N m per N of normal force)."""
+    forces = cone_edges(contacts.normals, friction, edges)
+    arms = contacts.points - np.asarray(center, dtype=float)
+    return forces, np.cross(arms[:, None, :], forces)
 
 
 def gravity_loads(contacts: Contacts, friction: float, center: np.ndarray,
@@ -53,9 +74,7 @@ def gravity_loads(contacts: Contacts, friction: float, center: np.ndarray,
     directions = np.asarray(directions, dtype=float).reshape(-1, 3)
     if contacts.count == 0:
         return np.zeros(len(directions))
-    forces = cone_edges(contacts.normals, friction, edges)  # (C, E, 3)
-    arms = contacts.points - np.asarray(center, dtype=float)
-    torques = np.cross(arms[:, None, :], forces)
+    forces, torques = _edge_forces_and_torques(contacts, friction, center, edges)
     n_vars = contacts.count * edges
     balance = np.zeros((6, n_vars + 1))
     balance[:3, :n_vars] = forces.reshape(-1, 3).T
@@ -82,3 +101,44 @@ def gravity_loads(contacts: Contacts, friction: float, center: np.ndarray,
     if solved.status != 0:
         return np.zeros(blocks)
     return np.maximum(solved.x[n_vars::n_vars + 1], 0.0) + 0.0  # no -0.0
+
+
+def resists_loads(contacts: Contacts, friction: float, center: np.ndarray, directions: np.ndarray,
+                  load: float, max_normal_force: float | None, edges: int = CONE_EDGES,
+                  torque_scale: float = 1.0, until_failure: bool = False) -> np.ndarray:
+    """Whether the contacts resist the load ``load`` (N) along each unit gravity direction
+    (D, 3) pulling at ``center`` (3,), with the normal forces of all contacts summing to at
+    most ``max_normal_force`` (N): (D,) bools, True exactly where :func:`gravity_loads` is at
+    least ``load`` (up to :data:`RESIDUAL_TOLERANCE`; False also where the solver does not
+    converge, so a caller that must be exact re-checks the False ones). Solved as the feasibility of the module
+    docstring's balance at ``s = load`` by non-negative least squares; ``torque_scale`` (metres,
+    e.g. the object radius) divides the torque rows so that they weigh as the force rows. With
+    ``until_failure`` the directions after the first one not resisted are not tested (False).
+    With ``max_normal_force`` None the grip is unbounded: True where the contacts resist some
+    positive load (any ``load`` > 0 gives the same answer), False where :func:`gravity_loads`
+    is 0 whatever the grip."""
+    directions = np.asarray(directions, dtype=float).reshape(-1, 3)
+    if contacts.count == 0:
+        return np.zeros(len(directions), dtype=bool) if load > 0 else np.ones(len(directions), bool)
+    forces, torques = _edge_forces_and_torques(contacts, friction, center, edges)
+    n_vars = contacts.count * edges
+    bounded = max_normal_force is not None
+    system = np.zeros((7, n_vars + 1) if bounded else (6, n_vars))  # the budget and its slack last
+    system[:3, :n_vars] = forces.reshape(-1, 3).T
+    system[3:6, :n_vars] = torques.reshape(-1, 3).T / float(torque_scale)
+    target = np.zeros(len(system))
+    if bounded:
+        system[6] = 1.0
+        target[6] = max_normal_force
+    tolerance = RESIDUAL_TOLERANCE * (abs(load) + (max_normal_force if bounded else 0.0))
+    resisted = np.zeros(len(directions), dtype=bool)
+    for k, d in enumerate(directions):
+        target[:3] = -load * d
+        try:
+            _, residual = nnls(system, target, maxiter=50 * (n_vars + 1))
+        except RuntimeError:  # no convergence (not seen in practice): False, as documented
+            residual = np.inf
+        resisted[k] = residual <= tolerance
+        if until_failure and not resisted[k]:
+            break
+    return resisted

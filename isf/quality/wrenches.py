@@ -31,13 +31,15 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import numpy as np
+from scipy.optimize import nnls
 from scipy.spatial import ConvexHull, QhullError
 
 if TYPE_CHECKING:
     from .contacts import Contacts
 
 __all__ = ["CLOSURE_TOLERANCE", "CONE_EDGES", "WrenchSpace", "cone_edges", "contact_wrenches",
-           "epsilon_quality", "force_closure", "tangent_bases", "tangent_basis"]
+           "epsilon_quality", "force_closure", "positively_spans", "tangent_bases",
+           "tangent_basis"]
 
 CONE_EDGES = 4
 """The number of edges of each linearised friction cone (see the module docstring). A pyramid
@@ -134,3 +136,23 @@ def force_closure(wrenches: np.ndarray) -> bool:
     """True when the origin lies strictly inside the convex hull of the edge wrenches (W, 6):
     the grasp resists every wrench (:attr:`WrenchSpace.force_closure`)."""
     return WrenchSpace(wrenches).force_closure
+
+
+def positively_spans(wrenches: np.ndarray, tolerance: float = 1e-9) -> bool:
+    """True when non-negative combinations of the edge wrenches (W, 6) reach every wrench: the
+    origin lies inside their convex hull, without building it. They positively span exactly
+    when they span six dimensions and a strictly positive combination of them is zero
+    (Stiemke's alternative; then any wrench, written as a combination, is made non-negative by
+    adding a multiple of that one); the second test is one non-negative least squares, weights
+    ``1 + x`` with ``x >= 0``, residual below ``tolerance`` times the size of the system.
+    False is exact up to that tolerance (the origin is outside, or on the boundary); True may
+    still have an :attr:`WrenchSpace.epsilon` below :data:`CLOSURE_TOLERANCE`."""
+    wrenches = np.asarray(wrenches, dtype=float).reshape(-1, 6)
+    if len(wrenches) <= 6 or np.linalg.matrix_rank(wrenches) < 6:
+        return False
+    target = -wrenches.sum(axis=0)
+    try:
+        _, residual = nnls(wrenches.T, target, maxiter=50 * len(wrenches))
+    except RuntimeError:  # no convergence: not shown to span
+        return False
+    return bool(residual <= tolerance * (1.0 + np.abs(wrenches).sum()))
