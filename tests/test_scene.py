@@ -312,3 +312,27 @@ def test_camera_keywords_beside_views_are_refused_in_one_line(box_view):
     with pytest.raises(InvalidInputError, match="cloud_frame belong in each SceneView"):
         load_scene([view], cloud_frame="scene")
     assert load_scene(view, cloud_frame="camera").surface.n_points > 0
+
+
+def test_isolated_stray_points_leave_the_surface_and_the_box_stays(box_view):
+    # Flying pixels: 24 table pixels, 8 px apart and away from the box, pulled 3 cm towards the
+    # camera (2-3 cm above the table), each alone in the air. They leave the surface ISF fits;
+    # the box's faces keep their points.
+    depth, intrinsics, T, _ = box_view
+    clean = load_scene(depth, intrinsics=intrinsics, T_scene_camera=T, table=0.0)
+    strays = depth.copy()
+    rows, cols = np.meshgrid(np.arange(20, 230, 8), np.arange(10, 310, 8), indexing="ij")
+    lifted = []
+    for v, u in zip(rows.ravel(), cols.ravel()):
+        point = T[:3, :3] @ _camera_point(intrinsics, u, v, depth[v, u]) + T[:3, 3]
+        if depth[v, u] > 0 and abs(point[2]) < 0.003 and np.abs(point[:2]).max() > 0.1:
+            strays[v, u] -= 0.03
+            lifted.append(T[:3, :3] @ _camera_point(intrinsics, u, v, strays[v, u]) + T[:3, 3])
+        if len(lifted) == 24:
+            break
+    lifted = np.array(lifted)
+    assert len(lifted) == 24 and (lifted[:, 2] > 0.01).all()
+    scene = load_scene(strays, intrinsics=intrinsics, T_scene_camera=T, table=0.0)
+    gaps = np.linalg.norm(scene.surface.points[:, None] - lifted[None], axis=2).min(axis=0)
+    assert (gaps > 0.01).all()  # no stray is left
+    assert scene.surface.n_points == pytest.approx(clean.surface.n_points, abs=5)

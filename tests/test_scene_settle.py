@@ -155,3 +155,38 @@ def test_plans_on_scenes_are_settled_and_plans_on_objects_are_not(two_sided_box)
     assert all(g.collision.penetration <= allowance for g in free if g.settled)
     on_object = isf.plan(gripper, isf.open_object("shape:box"), samples=4, seed=2)
     assert all(g.settled is None for g in on_object.grasps)
+
+
+def test_fingertips_in_the_table_back_off_instead_of_opening():
+    # A box 6 cm tall seen from both sides; flat-parallel from above, its pads on the faces
+    # y = +-0.02 (unpressed), its fingertips (9 cm along the approach) 1.5 mm below the table.
+    # Opening the fingers leaves the tips as deep and takes the pads off the faces; backing off
+    # lifts the tips out and keeps the pads on.
+    low = (BOX[0], BOX[1], 0.06)
+    box = box_on_table(low)
+    views = []
+    for k, side in enumerate((1.0, -1.0)):
+        T_camera = look_at((0.05, side * 0.45, 0.45), (0.0, 0.0, 0.03))
+        depth, intrinsics = render_depth([table_mesh(), box], T_camera, noise=0.001, seed=k)
+        views.append(isf.SceneView(depth, intrinsics=intrinsics, T_scene_camera=T_camera))
+    scene = load_scene(views, table="auto")
+    gripper = isf.load_gripper("flat-parallel")
+    T, q = _pressed_grasp(gripper, 0.0)
+    T[2, 3] = 0.09 - 0.0015
+    config = isf.FitConfig()
+    checker = CollisionChecker(gripper, scene.surface, obstacles=scene.obstacles,
+                               hidden=scene.unseen)
+    report = checker.check(T, q)
+    assert report.collision_free and report.penetration > 0.001
+    fit = score_fit(gripper, scene.surface, T, q, config, isf.FitStatus.CONVERGED, (), 0.0)
+    settler = Settler(gripper, scene.surface, scene, config, obstacles=scene.obstacles)
+    settled = settler.settle(fit, report)
+    assert settled.settled
+    T_after, q_after = settled.result.T_object_gripper, settled.result.q
+    poses = gripper.link_poses(q_after)
+    lowest = min(float((np.asarray(g.vertices) @ (T_after @ poses[g.link])[:3, :3].T
+                        + (T_after @ poses[g.link])[:3, 3])[:, 2].min())
+                 for g in gripper.geometries)
+    assert -settler.allowance - 0.0006 <= lowest < 0.0  # out of the true table but for its fit
+    _, gaps = _pads_into(box, gripper, T_after, q_after)
+    assert max(gaps) < 0.002  # the pads still touch the faces

@@ -7,7 +7,14 @@ takes a scene wherever it takes an object. See docs/tutorial-depth-camera.md for
 """
 
 from .camera import CameraIntrinsics, camera_pose, parse_intrinsics
-from .loading import NORMAL_NEIGHBOURS, SCENE_VOXEL, Scene, load_scene
+from .loading import (
+    ISOLATION_NEIGHBOURS,
+    ISOLATION_RADIUS,
+    NORMAL_NEIGHBOURS,
+    SCENE_VOXEL,
+    Scene,
+    load_scene,
+)
 from .segments import SceneSegments, segment_surface
 from .settle import NOISE_MARGIN, Settled, Settler, contact_allowance
 from .table import TABLE_MARGIN, find_table
@@ -16,6 +23,8 @@ from .views import SceneView
 
 __all__ = [
     "CameraIntrinsics",
+    "ISOLATION_NEIGHBOURS",
+    "ISOLATION_RADIUS",
     "NOISE_MARGIN",
     "NORMAL_NEIGHBOURS",
     "SCENE_VOXEL",

@@ -6,7 +6,13 @@
    checks, and the points within :data:`~isf.scene.table.TABLE_MARGIN` above it (and all below
    it) leave the surface that ISF fits;
 2. thins the rest to one point per ``voxel_size`` voxel (their mean), so a scene of millions of
-   points costs no more than its resolution is worth;
+   points costs no more than its resolution is worth, and drops the *isolated* points: those with
+   fewer than :data:`ISOLATION_NEIGHBOURS` others within :data:`ISOLATION_RADIUS` (or 4 voxels,
+   if larger). They are not surfaces but the sensor's strays: the far table's noisiest
+   measurements rising past the table margin, flying pixels between an object and its
+   background. Left in, each would be a cluster of its own for the samples to spread over (on a
+   table with one small object left, most of a plan's samples), with a normal fitted to
+   neighbours centimetres away. The unseen space behind them stays;
 3. estimates normals by PCA over each point's ``NORMAL_NEIGHBOURS`` (16) nearest neighbours,
    moves each point onto its local plane (smoothing the depth noise across the surface, as the
    paper smoothed its stereo clouds) and turns each normal towards the camera that saw the point
@@ -42,7 +48,8 @@ from .table import TABLE_MARGIN, resolve_table
 from .unseen import UnseenSpace, ViewDepth
 from .views import SceneView, observe
 
-__all__ = ["NORMAL_NEIGHBOURS", "SCENE_VOXEL", "Scene", "load_scene"]
+__all__ = ["ISOLATION_NEIGHBOURS", "ISOLATION_RADIUS", "NORMAL_NEIGHBOURS", "SCENE_VOXEL", "Scene",
+           "load_scene"]
 
 logger = logging.getLogger(__name__)
 
@@ -51,6 +58,13 @@ SCENE_VOXEL = 0.002
 
 NORMAL_NEIGHBOURS = 16
 """Neighbours (the point included) whose principal axes give a scene point's normal."""
+
+ISOLATION_RADIUS = 0.015
+"""Radius of the neighbourhood that decides whether a thinned surface point is isolated, metres
+(at least 4 voxels)."""
+
+ISOLATION_NEIGHBOURS = 5
+"""Other thinned surface points a point needs within :data:`ISOLATION_RADIUS` to be kept."""
 
 _MIN_POINTS = 10
 
@@ -191,6 +205,12 @@ def _surface(points: np.ndarray, given: np.ndarray | None, camera_of: np.ndarray
     _, first = np.unique(labels, return_index=True)
     camera_of = camera_of[first]
     points, normals = voxel_downsample(points, given, labels, n_vox)
+    kept = _not_isolated(points, max(ISOLATION_RADIUS, 4 * voxel))
+    if not kept.all():
+        logger.info("scene %s: %d isolated points of %d dropped", label, int((~kept).sum()),
+                    len(points))
+        points, camera_of = points[kept], camera_of[kept]
+        normals = None if normals is None else normals[kept]
     if len(points) < _MIN_POINTS:
         raise ObjectLoadError(f"scene {label} has {len(points)} surface points above the table "
                               f"at {voxel * 1e3:.1f} mm voxels, fewer than {_MIN_POINTS}: nothing "
@@ -209,3 +229,10 @@ def _surface(points: np.ndarray, given: np.ndarray | None, camera_of: np.ndarray
     normals = np.where((np.einsum("ij,ij->i", normals, towards) < 0)[:, None], -normals, normals)
     return ObjectSurface(points=points, normals=normals, spacing=max(spacing, voxel), name=label,
                          viewpoints=cameras), noise
+
+
+def _not_isolated(points: np.ndarray, radius: float) -> np.ndarray:
+    """(N,) bool: the points (N, 3) with at least :data:`ISOLATION_NEIGHBOURS` others within
+    ``radius`` metres."""
+    counts = cKDTree(points).query_ball_point(points, radius, return_length=True, workers=1)
+    return np.asarray(counts) > ISOLATION_NEIGHBOURS

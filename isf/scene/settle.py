@@ -20,7 +20,11 @@ allowance* ``max(0, tolerance - NOISE_MARGIN x Scene.noise)``:
 * any other link (the palm) too deep, or fingers that cannot open further: the gripper backs off
   along its approach direction by the excess depth.
 
-Each move goes :data:`STEP_MARGIN` beyond the excess.
+Each move goes :data:`STEP_MARGIN` beyond the excess. When that move leaves the gripper no less
+deep (an edge of a finger, not its pad, digging into a curved surface; a finger opening into
+the unseen space), the gripper instead takes the least deep of the other moves by the same
+length: the opening, the back-off, and a translation either way along the gripper frame's x
+and y axes.
 
 At most :data:`SETTLE_STEPS` moves are made; the settled state is scored afresh
 (:func:`isf.fitting.engine.score_fit`) and kept when every contact surface still touches the
@@ -137,8 +141,25 @@ class Settler:
     def _step(self, T: np.ndarray, q: np.ndarray, check: CollisionReport,
               pressed: set[str]) -> tuple[np.ndarray, np.ndarray]:
         """One move out of the surface for a state whose ``check`` at the allowance failed
-        (``pressed``: the fingers found too deep so far, this state's included)."""
+        (``pressed``: the fingers found too deep so far, this state's included): the
+        preferred move, or when it goes no less deep the least deep of the others."""
         move = check.penetration - self.allowance + STEP_MARGIN
+        preferred = self._preferred(T, q, check, pressed, move)
+        if self.checker.check(*preferred).penetration < check.penetration:
+            return preferred
+        others = [_translated(T, sign * move * T[:3, axis]) for axis in (0, 1)
+                  for sign in (1.0, -1.0)]
+        candidates = [(T_moved, q) for T_moved in others]
+        candidates.append((_translated(T, -move * (T[:3, :3] @ self._approach)), q))
+        opened = self._opened(q, move)
+        if opened is not None:
+            candidates.append((T, opened))
+        depths = [self.checker.check(*state).penetration for state in candidates]
+        return candidates[int(np.argmin(depths))]
+
+    def _preferred(self, T: np.ndarray, q: np.ndarray, check: CollisionReport, pressed: set[str],
+                   move: float) -> tuple[np.ndarray, np.ndarray]:
+        """The move the module docstring's rules prefer, ``move`` metres."""
         fingers = [k for k, link in enumerate(self.gripper.contact_links)
                    if link in check.colliding_links]
         others = set(check.colliding_links).difference(self.gripper.contact_links)
