@@ -40,12 +40,15 @@ from .compiled.cache import cache_folder
 from .compiled.healing import logger
 from .compiled.lock import compile_lock
 from .compiled.workers import compiled_name, start_worker
+from .config import FitConfig
 from .fitting.correspondence import match
+from .fitting.engine import score_fit
 from .fitting.fit import fit_many
 from .gripper.model import ContactSurface, Gripper, LinkGeometry
 from .object.surface import ObjectSurface
 from .repair.clearance import ClearanceRepair
 from .repair.rows import deepest_rows, undecided
+from .result import FitStatus
 from .search.nearest import NearestPoints
 from .search.point_grid import PointGrid
 
@@ -208,27 +211,30 @@ def _compile(pending: set[str], progress: Callable[[int, int], None] | None) -> 
 
 
 def _warm_engine() -> None:
-    """The kernels of the ISF engine, with the engine's calls."""
-    grid = np.stack(np.meshgrid(*[np.linspace(-0.02, 0.02, 41)] * 2), axis=-1).reshape(-1, 2)
-    plane = ObjectSurface(np.c_[grid + [0.05, 0.0], np.zeros(len(grid))],
-                          np.tile([0.0, 0.0, 1.0], (len(grid), 1)), spacing=0.001)
+    """The kernels of the ISF engine, with the engine's calls: first the compiled kinematics
+    (which the checks' part then loads from the cache), then the fits."""
+    _tiny_gripper().link_kinematics_many(np.zeros((1, 1)))
+    plane = _plane()
     T = np.eye(4)
     T[2, 3] = 0.001  # the pad 1 mm above the plane
     fit_many(_tiny_gripper(), plane, T[None])
     paused = _tiny_gripper()
     paused._chain = None  # as for joints without compiled kinematics: IPFO pauses for Pinocchio
     fit_many(paused, plane, T[None], np.array([[0.1]]))  # a tilted pad: the joint turns
-    plane.nearest(plane.points[:2])  # as the collision repair asks
-    match(plane, plane.points[:8] + [0.0, 0.0, 0.001], outlier_factor=3.0, outlier_floor=0.005,
-          reject_duplicates=True)
+
+
+def _plane() -> ObjectSurface:
+    """A 4 x 4 cm plane of 1681 points at z = 0, normals +z, under the tiny gripper's pad."""
+    grid = np.stack(np.meshgrid(*[np.linspace(-0.02, 0.02, 41)] * 2), axis=-1).reshape(-1, 2)
+    return ObjectSurface(np.c_[grid + [0.05, 0.0], np.zeros(len(grid))],
+                         np.tile([0.0, 0.0, 1.0], (len(grid), 1)), spacing=0.001)
 
 
 def _warm_checks() -> None:
-    """The kernels of the collision checks and the repair, after the compiled kinematics
-    (which the engine's part needs only once its k-d tree is built: it then loads them from the
-    cache). Those that need no k-d tree come first: the engine's part builds one at once, and
-    its compiled build is then in the cache when this part needs it."""
-    _tiny_gripper().link_kinematics_many(np.zeros((1, 1)))
+    """The kernels of the collision checks and the repair, and the engine's kernels that only
+    finished fits and the repair call (a fit's score, nearest points, the correspondence
+    filter). Those that need no k-d tree and no kinematics come first: the engine's part
+    compiles both at once, and they are then in the cache when this part needs them."""
     points = np.random.default_rng(0).uniform(-0.01, 0.01, (50, 3))
     box = trimesh.creation.box(extents=(0.01, 0.01, 0.01))
     ConvexElements([(box.vertices, box.faces)], np.zeros(1), np.zeros(1)).rows(
@@ -241,6 +247,12 @@ def _warm_checks() -> None:
     search = NearestPoints(points, graph=True)  # the graph's neighbour lists, sorted
     search.query_k(points[:2], 6)
     search.query_within(points[:2], 0.01)  # a bounded search
+    plane, T = _plane(), np.eye(4)
+    T[2, 3] = 0.001
+    score_fit(_tiny_gripper(), plane, T, np.zeros(1), FitConfig(), FitStatus.CONVERGED, (), 0.0)
+    plane.nearest(plane.points[:2])  # as the collision repair asks
+    match(plane, plane.points[:8] + [0.0, 0.0, 0.001], outlier_factor=3.0, outlier_floor=0.005,
+          reject_duplicates=True)
     _check_collisions()
 
 

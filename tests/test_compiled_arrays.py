@@ -25,7 +25,8 @@ def test_copy_into_refuses_arrays_of_other_shapes():
 def test_no_kernel_links_numbas_shape_mismatch_message():
     """A slice assignment from an array links numba's ``raise_with_shape_context`` (its error
     message formats both shapes), which costs seconds of compiling per process
-    (docs/design-decisions.md): no kernel of a warm-up links it."""
+    (docs/design-decisions.md): no kernel of a warm-up links it (a kernel compiled here or
+    loaded from the cache carries the code of every kernel it calls)."""
     warm_up()
     checked, offenders = 0, []
     for kernel in _kernels():
@@ -37,5 +38,5 @@ def test_no_kernel_links_numbas_shape_mismatch_message():
             checked += 1
             if "raise_with_shape_context" in str(module):
                 offenders.append(kernel.py_func.__qualname__)
-    assert checked > 50
+    assert checked > 20  # at least the entry points, whose modules hold their callees' code
     assert offenders == []
