@@ -259,4 +259,6 @@ def _warm_checks() -> None:
 _PARTS = (_warm_engine, _warm_checks)
 """The warm-up's parts: with a worker per extra core, the first runs in this process and the
 last ones in the workers. Where two parts use a kernel, one compiles it before the other needs
-it, which then loads it from the cache: no kernel is compiled twice."""
+it, which then loads it from the cache: no kernel is compiled twice but the array copy
+(:func:`isf.compiled.arrays.copy_into`), a few tenths of a second, which each part needs from
+its first kernels on."""
