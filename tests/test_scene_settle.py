@@ -45,12 +45,18 @@ def test_a_noise_free_surface_has_no_noise():
 def two_sided_box():
     """A box on a table seen by two noisy cameras, one on each side the fingers close on."""
     box = box_on_table(BOX)
+    return _seen_from_both_sides(box, 0.05), box
+
+
+def _seen_from_both_sides(box, target_height: float):
+    """The scene of ``box`` on the table seen by two cameras with 1 mm noise, at y = +-0.45 m,
+    looking at the point ``target_height`` metres above the origin."""
     views = []
     for k, side in enumerate((1.0, -1.0)):
-        T = look_at((0.05, side * 0.45, 0.45), (0.0, 0.0, 0.05))
+        T = look_at((0.05, side * 0.45, 0.45), (0.0, 0.0, target_height))
         depth, intrinsics = render_depth([table_mesh(), box], T, noise=0.001, seed=k)
         views.append(isf.SceneView(depth, intrinsics=intrinsics, T_scene_camera=T))
-    return load_scene(views, table="auto"), box
+    return load_scene(views, table="auto")
 
 
 def _pads_into(box, gripper, T, q) -> tuple[float, list[float]]:
@@ -164,12 +170,7 @@ def test_fingertips_in_the_table_back_off_instead_of_opening():
     # lifts the tips out and keeps the pads on.
     low = (BOX[0], BOX[1], 0.06)
     box = box_on_table(low)
-    views = []
-    for k, side in enumerate((1.0, -1.0)):
-        T_camera = look_at((0.05, side * 0.45, 0.45), (0.0, 0.0, 0.03))
-        depth, intrinsics = render_depth([table_mesh(), box], T_camera, noise=0.001, seed=k)
-        views.append(isf.SceneView(depth, intrinsics=intrinsics, T_scene_camera=T_camera))
-    scene = load_scene(views, table="auto")
+    scene = _seen_from_both_sides(box, 0.03)
     gripper = isf.load_gripper("flat-parallel")
     T, q = _pressed_grasp(gripper, 0.0)
     T[2, 3] = 0.09 - 0.0015
