@@ -121,12 +121,12 @@ class Settler:
         failed = Settled(result, report, False)
         T, q = np.array(result.T_object_gripper, dtype=float), np.array(result.q, dtype=float)
         moved, pressed = False, set()
+        check = self.checker.check(T, q)
         for _ in range(SETTLE_STEPS + 1):
-            check = self.checker.check(T, q)
             if check.collision_free:
                 break
             pressed.update(self._contact_links.intersection(check.colliding_links))
-            T, q = self._step(T, q, check, pressed)
+            T, q, check = self._step(T, q, check, pressed)
             moved = True
         else:
             return failed
@@ -138,24 +138,26 @@ class Settler:
             return failed
         return Settled(scored, check, True)
 
-    def _step(self, T: np.ndarray, q: np.ndarray, check: CollisionReport,
-              pressed: set[str]) -> tuple[np.ndarray, np.ndarray]:
+    def _step(self, T: np.ndarray, q: np.ndarray, check: CollisionReport, pressed: set[str]
+              ) -> tuple[np.ndarray, np.ndarray, CollisionReport]:
         """One move out of the surface for a state whose ``check`` at the allowance failed
         (``pressed``: the fingers found too deep so far, this state's included): the
-        preferred move, or when it goes no less deep the least deep of the others."""
+        preferred move, or when it goes no less deep the least deep of the others; the moved
+        state and its check."""
         move = check.penetration - self.allowance + STEP_MARGIN
-        preferred = self._preferred(T, q, check, pressed, move)
-        if self.checker.check(*preferred).penetration < check.penetration:
-            return preferred
-        others = [_translated(T, sign * move * T[:3, axis]) for axis in (0, 1)
-                  for sign in (1.0, -1.0)]
-        candidates = [(T_moved, q) for T_moved in others]
-        candidates.append((_translated(T, -move * (T[:3, :3] @ self._approach)), q))
+        T_preferred, q_preferred = self._preferred(T, q, check, pressed, move)
+        report = self.checker.check(T_preferred, q_preferred)
+        if report.penetration < check.penetration:
+            return T_preferred, q_preferred, report
+        candidates = [(_translated(T, sign * move * T[:3, axis]), q) for axis in (0, 1)
+                      for sign in (1.0, -1.0)]
+        candidates.append((self._backed_off(T, move), q))
         opened = self._opened(q, move)
         if opened is not None:
             candidates.append((T, opened))
-        depths = [self.checker.check(*state).penetration for state in candidates]
-        return candidates[int(np.argmin(depths))]
+        reports = [self.checker.check(*state) for state in candidates]
+        best = int(np.argmin([r.penetration for r in reports]))
+        return (*candidates[best], reports[best])
 
     def _preferred(self, T: np.ndarray, q: np.ndarray, check: CollisionReport, pressed: set[str],
                    move: float) -> tuple[np.ndarray, np.ndarray]:
@@ -171,7 +173,11 @@ class Settler:
             opened = self._opened(q, move)
             if opened is not None:
                 return T, opened
-        return _translated(T, -move * (T[:3, :3] @ self._approach)), q
+        return self._backed_off(T, move), q
+
+    def _backed_off(self, T: np.ndarray, move: float) -> np.ndarray:
+        """``T`` moved ``move`` metres back along the gripper's approach direction."""
+        return _translated(T, -move * (T[:3, :3] @ self._approach))
 
     def _opened(self, q: np.ndarray, move: float) -> np.ndarray | None:
         """``q`` with the fingers opened so the contact points move by ``move`` metres at most
