@@ -492,25 +492,13 @@ def import_open3d():
 def tagged_franka_hand(folder):
     """The vendor Franka hand (``isf.assets.vendor_gripper("franka-hand")``) tagged as a user
     tags it: ``isf tag`` with every suggestion (a contact surface on the distal half of each
-    finger's inner face, the approach, the TCP), written to ``folder/franka-hand.urdf`` and loaded.
+    finger's inner face, the approach, the TCP), written into ``folder`` and loaded. It is the
+    gripper of the learned sampler's bundled ``franka-hand`` model, made by the plugin's
+    ``isf_sampler_learned.bundled.tagged_franka_hand`` (the plugin is installed with the test
+    extras)."""
+    from isf_sampler_learned.bundled import tagged_franka_hand as tagged
 
-    The same command makes the gripper of the learned sampler's bundled ``franka-hand`` model
-    (``isf_sampler_learned.bundled.tagged_franka_hand``), so both have the same sha256.
-    """
-    import contextlib
-    import io
-    from pathlib import Path
-
-    import isf
-    from isf.assets import vendor_gripper
-    from isf.cli import main
-
-    out = Path(folder) / "franka-hand.urdf"
-    with contextlib.redirect_stdout(io.StringIO()):  # isf tag's preview of what it selected
-        status = main(["tag", str(vendor_gripper("franka-hand")), "--out", str(out)])
-    if status:
-        raise RuntimeError(f"isf tag exited {status} on the vendor Franka hand")
-    return isf.load_gripper(out)
+    return tagged(folder)
 
 
 # --------------------------------------------------------------------------- objects

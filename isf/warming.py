@@ -214,13 +214,18 @@ def _warm_engine() -> None:
     """The kernels of the ISF engine, with the engine's calls: first the compiled kinematics
     (which the checks' part then loads from the cache), then the fits."""
     _tiny_gripper().link_kinematics_many(np.zeros((1, 1)))
-    plane = _plane()
-    T = np.eye(4)
-    T[2, 3] = 0.001  # the pad 1 mm above the plane
+    plane, T = _plane(), _pad_pose()
     fit_many(_tiny_gripper(), plane, T[None])
     paused = _tiny_gripper()
     paused._chain = None  # as for joints without compiled kinematics: IPFO pauses for Pinocchio
     fit_many(paused, plane, T[None], np.array([[0.1]]))  # a tilted pad: the joint turns
+
+
+def _pad_pose() -> np.ndarray:
+    """The tiny gripper's pose (4, 4) that puts its pad 1 mm above :func:`_plane`."""
+    T = np.eye(4)
+    T[2, 3] = 0.001
+    return T
 
 
 def _plane() -> ObjectSurface:
@@ -247,8 +252,7 @@ def _warm_checks() -> None:
     search = NearestPoints(points, graph=True)  # the graph's neighbour lists, sorted
     search.query_k(points[:2], 6)
     search.query_within(points[:2], 0.01)  # a bounded search
-    plane, T = _plane(), np.eye(4)
-    T[2, 3] = 0.001
+    plane, T = _plane(), _pad_pose()
     score_fit(_tiny_gripper(), plane, T, np.zeros(1), FitConfig(), FitStatus.CONVERGED, (), 0.0)
     plane.nearest(plane.points[:2])  # as the collision repair asks
     match(plane, plane.points[:8] + [0.0, 0.0, 0.001], outlier_factor=3.0, outlier_floor=0.005,
