@@ -9,9 +9,9 @@ a kernel at its first call and caches the machine code on disk (in the package's
 ``__pycache__`` folders, or in numba's user cache when those are read-only;
 ``NUMBA_CACHE_DIR`` moves it; :mod:`isf.compiled.cache` drops cached kernels whose sources
 changed, or the sources of the modules they use, and those it cannot load). So the first
-run after installing or upgrading isf compiles them (about 55 s of CPU for the engine's
-kernels and as much for the checks' and the repair's, compiled side by side on a machine with
-two cores: docs/benchmarks.md, "First run"), and later runs load them in about a second.
+run after installing or upgrading isf compiles them (the engine's kernels and, side by side on
+a machine with two cores, the checks' and the repair's: docs/benchmarks.md, "First run"), and
+later runs load them in about a second.
 
 :func:`warm_up` compiles (or loads) every kernel on tiny inputs of the types the engine
 passes, so that the cost lands where the caller wants it: ``isf plan`` calls it before

@@ -207,15 +207,23 @@ with compile_lock(Path(sys.argv[1])):
     assert second.stdout.split() == ["locked", "7.0", "0"]  # waited, then loaded f
 
 
-def test_a_worker_dies_with_its_parent(tmp_path):
+@pytest.mark.parametrize("threads", [1, 2])
+def test_a_worker_dies_with_its_parent(tmp_path, threads):
+    """On Linux a single-threaded parent forks its worker, a parent running two threads starts
+    a fresh Python; either way the worker ends when the parent is killed."""
     (tmp_path / "forever.py").write_text("import time\ndef run():\n    time.sleep(600)\n")
+    other_thread = "threading.Thread(target=time.sleep, args=(600,), daemon=True).start()\n"
     parent = subprocess.Popen(
-        [sys.executable, "-c", "import time\nfrom isf.compiled.workers import start_worker\n"
-         "print(start_worker('forever:run').pid, flush=True)\ntime.sleep(600)"],
+        [sys.executable, "-c", "import threading, time\nfrom isf.compiled.workers import start_worker\n"
+         + other_thread * (threads - 1)
+         + "print(start_worker('forever:run').pid, flush=True)\ntime.sleep(600)"],
         env={**os.environ, "PYTHONPATH": str(tmp_path)}, stdout=subprocess.PIPE, text=True)
     worker = int(parent.stdout.readline())
     time.sleep(1.0)  # the worker runs its body
     assert _alive(worker)
+    if sys.platform.startswith("linux"):
+        command = Path(f"/proc/{worker}/cmdline").read_bytes()
+        assert (b"serve(" in command) == (threads > 1)  # a fork runs the parent's command line
     parent.send_signal(signal.SIGKILL)
     parent.wait()
     deadline = time.monotonic() + 30

@@ -713,11 +713,11 @@ def reverse_clearance(measured, candidates, owner, poses, triangles, triangle_st
     triangles (link frame, ``triangles[triangle_start[e]:triangle_start[e + 1]]``), >= 0.
     ``points``, ``tree``: the object's points and their search
     (:attr:`isf.search.nearest.NearestPoints.tree`)."""
-    order = np.argsort(measured, kind="mergesort")
-    best = measured[order[0]]
-    first = np.full(len(poses), -1, np.int64)  # each element's best candidate
-    for j in order:
-        if first[owner[j]] < 0:
+    best = np.inf
+    first = np.full(len(poses), -1, np.int64)  # each element's best candidate (the first if tied)
+    for j in range(len(measured)):
+        best = min(best, measured[j])
+        if first[owner[j]] < 0 or measured[j] < measured[first[owner[j]]]:
             first[owner[j]] = j
     best_d2, nearest = np.empty(probes), np.empty(probes, np.int64)
     stack = search_scratch()

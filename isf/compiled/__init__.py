@@ -6,6 +6,8 @@
   kernels compiled without reference counting and inlined into their callers.
 - :mod:`isf.compiled.arrays`: :func:`~isf.compiled.arrays.copy_into`, the kernels' array copy
   (numba's slice assignment from an array compiles seconds more).
+- ``isf.compiled.flags``: numba's compiler flags hashed and compared without rebuilding every
+  option (a few seconds of every compile; installed before the first kernel is made).
 - :mod:`isf.compiled.cache`: numba's disk cache kept consistent with the sources (run before
   the first kernel is defined).
 - ``isf.compiled.healing``: ``cached_njit``, numba's cache of one

@@ -26,6 +26,7 @@ from pathlib import Path
 from numba import njit
 
 from .cache import refresh_installed
+from .flags import install as install_quick_flags
 
 __all__ = ["cached_njit", "logger"]
 
@@ -33,6 +34,7 @@ logger = logging.getLogger("isf.compiled")
 """Where a dropped or unsaved cache entry is reported (level WARNING, one line)."""
 
 refresh_installed()  # before any kernel of isf exists: drop cached kernels whose sources changed
+install_quick_flags()  # numba's flags hashed and compared in a tenth of the time: compiles faster
 
 try:
     from numba.core.caching import FunctionCache

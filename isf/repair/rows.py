@@ -207,7 +207,7 @@ def sample_rows(world, guess, floor, element, known_violation, known_element, li
         if most_likely:
             candidates = candidates[deepest_rows(bound[candidates], element[candidates], n_elements,
                                                  np.inf, max_rows)]
-            candidates.sort()
+            candidates = candidates[np.argsort(candidates)]  # one sort compiled, as for the convex elements
         height, plane, _, _ = plane_estimates(kept_world[candidates], plane_points, plane_normals,
                                         plane_tree, k)
         for j in range(len(candidates)):
