@@ -27,6 +27,10 @@ point; closing as for ``allegro-right``), and
 size) on each object scaled uniformly so that its smallest principal width is
 ``SCALED_FILL`` of the opening (the same 0.3 kg: only the geometry is scaled).
 
+``--seed N`` plans with another seed (default 0). ``--com-bias BETA`` plans with
+:class:`CentreOfMassRegret` instead of the regret sampler: a start bias toward the centre of
+mass, measured in docs/validate.md (not isf's default).
+
 With ``--every-valid``, every valid grasp of each ``quality`` plan is simulated too, not only
 the top 5: how many of them hold, by distance of their contacts from the centre of mass, how
 well the smallest gravity margin separates held from failed grasps (area under the ROC
@@ -35,7 +39,7 @@ curve), and the best top-1 and top-5 that any ranking of the plan's grasps could
 Run from the repository root:
     python bench/bench_hold.py [--quick] [--grippers paper-parallel,franka-hand]
                                [--objects Banana,MustardBottle] [--raw FILE.json] [--out FILE.md]
-                               [--every-valid]
+                               [--every-valid] [--seed N] [--com-bias BETA]
 """
 
 from __future__ import annotations
@@ -50,14 +54,47 @@ import inspect
 import json
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 import isf
+from isf.quality import object_properties
+from isf.samplers.regret import RegretSampler
 from isf.simulation import SimulationSettings, object_body, validate_grasp
 
 SAMPLES, SEED, TOP, FRICTION = 60, 0, 5, 0.5
+#: what every isf.plan of this script is given besides the gripper and object (set by main)
+PLAN_OPTIONS: dict = {"samples": SAMPLES, "seed": SEED}
+
+
+@dataclass(eq=False, kw_only=True)
+class CentreOfMassRegret(RegretSampler):
+    """The regret sampler with a start bias toward the centre of mass: once every cluster has
+    an outcome, it picks the cluster with the least average regret plus ``bias`` times the
+    distance of the cluster centre from the object's centre of mass
+    (:func:`isf.quality.object_properties`), metres of regret per metre."""
+
+    bias: float = 0.02
+
+    def reset(self, obj, gripper, rng) -> None:
+        super().reset(obj, gripper, rng)
+        self._distance = np.linalg.norm(self.centres - object_properties(obj).center_of_mass,
+                                        axis=1)
+
+    def best_cluster(self) -> int:
+        self._require_reset()
+        score = self.regret + self.bias * self._distance * (self.trials > 0)
+        return int(np.lexsort((np.arange(self.k), self.pending, score))[0])
+
+
+def plan(gripper, obj, **options):
+    """``isf.plan`` with :data:`PLAN_OPTIONS` (a fresh sampler each time)."""
+    options = {**PLAN_OPTIONS, **options}
+    if callable(options.get("sampler")):
+        options["sampler"] = options["sampler"]()
+    return isf.plan(gripper, obj, **options)
 GRIPPERS = ("paper-parallel", "paper-parallel-scaled", "flat-parallel", "three-finger",
             "franka-hand", "allegro-right", "allegro-suggested")
 PARALLEL = ("paper-parallel", "paper-parallel-scaled", "flat-parallel", "franka-hand")
@@ -131,11 +168,12 @@ def baseline():
 def candidates(method: str, gripper, obj, plan_antipodal) -> list[tuple[np.ndarray, np.ndarray]]:
     """The top grasps of one method as (T_object_gripper (4, 4), q (n_joints,)) pairs."""
     if method == "antipodal":
-        grasps = plan_antipodal(gripper, obj, n_grasps=20, seed=SEED, friction=FRICTION)
+        grasps = plan_antipodal(gripper, obj, n_grasps=20, seed=PLAN_OPTIONS["seed"],
+                                friction=FRICTION)
     elif method == "fit" and len(rankings()) == 1:
-        grasps = isf.plan(gripper, obj, samples=SAMPLES, seed=SEED).grasps
+        grasps = plan(gripper, obj).grasps
     else:
-        grasps = isf.plan(gripper, obj, samples=SAMPLES, seed=SEED, rank=method).grasps
+        grasps = plan(gripper, obj, rank=method).grasps
     out = []
     for g in list(grasps)[:TOP]:
         q = getattr(g, "q", None)
@@ -152,7 +190,7 @@ COM_BANDS = (0.0, 0.01, 0.02, 0.03, np.inf)
 def every_valid(gripper, obj, body, settings) -> dict:
     """Every valid grasp of one ``quality`` plan simulated: their outcomes, distances from the
     centre of mass (m) and smallest gravity margins, in the plan's order."""
-    grasps = [g for g in isf.plan(gripper, obj, samples=SAMPLES, seed=SEED).grasps if g.valid]
+    grasps = [g for g in plan(gripper, obj).grasps if g.valid]
     return {"outcomes": [validate_grasp(gripper, body, g.T_object_gripper, g.q, settings)
                          .outcome.value for g in grasps],
             "com_offsets": [g.quality.com_offset for g in grasps],
@@ -207,8 +245,14 @@ def main() -> None:
                         help="comma-separated, of fit, quality, antipodal (default: all available)")
     parser.add_argument("--every-valid", action="store_true",
                         help="also simulate every valid grasp of each quality plan")
+    parser.add_argument("--seed", type=int, default=SEED, help="seed of every plan")
+    parser.add_argument("--com-bias", type=float, default=None, metavar="BETA",
+                        help="plan with CentreOfMassRegret(bias=BETA) instead of the regret sampler")
     parser.set_defaults(deadline=0.0)
     args = parser.parse_args()
+    PLAN_OPTIONS["seed"] = args.seed
+    if args.com_bias is not None:
+        PLAN_OPTIONS["sampler"] = lambda: CentreOfMassRegret(bias=args.com_bias)
     grippers = args.grippers.split(",")
     objects = args.objects.split(",")[:2] if args.quick else args.objects.split(",")
     started, header = time.perf_counter(), _common.machine_description()
@@ -275,7 +319,9 @@ def main() -> None:
         [[r["gripper"], r["method"], r["object"],
           " ".join(f"{o[0].upper()}{h}" for o, h in zip(r["outcomes"], r["held_directions"]))]
          for r in rows])
-    text = (f"{SAMPLES} samples, regret sampler, seed {SEED}, YCB objects at real size; top {TOP} "
+    sampler = ("regret sampler" if args.com_bias is None
+               else f"CentreOfMassRegret sampler (bias {args.com_bias})")
+    text = (f"{SAMPLES} samples, {sampler}, seed {args.seed}, YCB objects at real size; top {TOP} "
             f"grasps of each plan simulated with friction {settings.friction}, "
             f"{settings.mass} kg, finger force {settings.finger_force} N. Outcome letters: "
             "H held in all six directions, S slipped (in at least one), E ejected while closing, "

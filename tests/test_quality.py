@@ -222,3 +222,54 @@ def test_held_margin_is_the_smallest_margin_capped_at_the_target():
             assert type(record["force_closure"]) is bool and type(record["epsilon"]) is float
             held.add(quality.held_margin)
     assert 0.0 in held and 1.0 in held and any(0 < h < 1 for h in held)
+
+
+def test_centre_of_mass_of_a_closed_mesh_is_that_of_its_solid():
+    """A pyramid's centre of mass lies a quarter of its height above its base (analytic), and
+    trimesh's mass properties give the same bits; a mesh that bounds no solid (open, or wound
+    inside out, or one face flipped) falls back to the centroid of its surface, as trimesh's
+    ``is_volume`` says."""
+    import trimesh
+
+    from isf.quality.grasp_quality import _solid_center_of_mass
+
+    cone = trimesh.creation.cone(radius=0.04, height=0.1, sections=24)  # base at z = 0
+    centre = _solid_center_of_mass(cone.vertices, cone.faces)
+    np.testing.assert_allclose(centre, [0.0, 0.0, 0.025], atol=1e-12)
+    for mesh in (cone, trimesh.creation.icosphere(subdivisions=3, radius=0.05),
+                 trimesh.creation.annulus(r_min=0.02, r_max=0.04, height=0.03)):
+        mesh.apply_translation([0.01, -0.02, 0.03])
+        reference = trimesh.Trimesh(mesh.vertices, mesh.faces, process=False)
+        assert reference.is_volume
+        assert np.array_equal(_solid_center_of_mass(mesh.vertices, mesh.faces),
+                              reference.center_mass)
+    one_flipped = cone.faces.copy()
+    one_flipped[0] = one_flipped[0, ::-1]
+    for faces in (cone.faces[:-1], cone.faces[:, ::-1], one_flipped):
+        assert not trimesh.Trimesh(cone.vertices, faces, process=False).is_volume
+        assert _solid_center_of_mass(cone.vertices, faces) is None
+
+
+def test_contacts_of_many_grasps_at_once_are_those_of_each():
+    """The batched contact model keeps the grasps apart: each grasp's contacts are those it
+    has alone, a grasp off the object has none, and its quality record is the same."""
+    from isf.quality import grasps_contacts, grasps_quality
+
+    gripper = isf.load_gripper("three-finger")
+    cylinder = isf.open_object("shape:cylinder")
+    result = isf.plan(gripper, cylinder, samples=8, seed=1, diversity=None, rank="fit")
+    poses = [g.T_object_gripper for g in result.grasps]
+    joints = [g.q for g in result.grasps]
+    away = poses[0].copy()
+    away[:3, 3] += 1.0  # a metre off the object
+    poses, joints = np.array([away, *poses]), np.array([joints[0], *joints])
+    together = grasps_contacts(gripper, cylinder, poses, joints)
+    assert together[0].count == 0 and together[0].patches == 0
+    assert sum(c.count > 0 for c in together) >= 4
+    for contacts, T, q in zip(together, poses, joints):
+        alone = grasp_contacts(gripper, cylinder, T, q)
+        for field in ("points", "normals", "surface", "patch"):
+            assert np.array_equal(getattr(contacts, field), getattr(alone, field))
+    records = [q.to_dict() for q in grasps_quality(gripper, cylinder, poses, joints)]
+    assert records == [isf.quality.grasp_quality(gripper, cylinder, T, q).to_dict()
+                       for T, q in zip(poses, joints)]

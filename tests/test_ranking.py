@@ -118,3 +118,32 @@ def test_cli_rejects_negative_friction():
     proc = run("plan", "-g", "paper-parallel", "-o", "shape:cylinder", "-n", "2", "--friction", "-1")
     assert proc.returncode == 2
     assert "friction" in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
+
+
+def test_margins_ordered_by_bounds_as_by_their_values():
+    """The ranking compares the held margins of grasps that do not hold by bounds from
+    feasibility tests; the order is the one the computed margins give, also for near-equal
+    margins (the same contacts moved by 1e-12 m: the values decide), and the bounds settle
+    the others without computing a margin."""
+    from isf.quality import Contacts, ObjectProperties, quality_rank_key
+
+    rng = np.random.default_rng(4)
+    qualities = []
+    for k in range(40):  # three or four point contacts on a 3 cm sphere, pushing inwards
+        points = rng.normal(size=(int(rng.integers(3, 5)), 3))
+        points = 0.03 * points / np.linalg.norm(points, axis=1, keepdims=True)
+        properties = ObjectProperties(rng.normal(scale=0.008, size=3), 0.05)
+        for shift in (0.0, 1e-12) if k % 4 == 0 else (0.0,):
+            contacts = Contacts.from_points(points + shift, -points)
+            qualities.append(isf.quality.contacts_quality(contacts, properties,
+                                                          QualityConfig(mass=1.0)))
+    lazy = sorted(range(len(qualities)), key=lambda k: quality_rank_key(qualities[k], 0.0))
+    computed = sum("held_margin" in q.__dict__ and 0 < q.held_margin < MARGIN_TARGET
+                   for q in qualities)
+    below = sum(0 < q.min_margin < MARGIN_TARGET for q in qualities)  # now every value
+    full = sorted(range(len(qualities)), key=lambda k: (-min(qualities[k].min_margin,
+                                                             MARGIN_TARGET),
+                                                        qualities[k].com_offset,
+                                                        -qualities[k].epsilon))
+    assert lazy == full
+    assert below >= 10 and computed < below

@@ -75,7 +75,7 @@ from ..object.surface import ObjectSurface
 from ..quality.grasp_quality import (
     GraspQuality,
     QualityConfig,
-    grasp_quality,
+    grasps_quality,
     object_properties,
     quality_rank_key,
 )
@@ -308,9 +308,10 @@ def _with_quality(grasps: list[Grasp], gripper: Gripper, obj: ObjectSurface,
     """``grasps`` with the :attr:`Grasp.quality` of each valid one (the others keep None)."""
     if not any(g.valid for g in grasps):
         return grasps
-    properties = object_properties(obj)
-    return [replace(g, quality=grasp_quality(gripper, obj, g.T_object_gripper, g.q, config,
-                                             properties)) if g.valid else g for g in grasps]
+    valid = [g for g in grasps if g.valid]
+    qualities = iter(grasps_quality(gripper, obj, np.array([g.T_object_gripper for g in valid]),
+                                    np.array([g.q for g in valid]), config, object_properties(obj)))
+    return [replace(g, quality=next(qualities)) if g.valid else g for g in grasps]
 
 
 def _slots(sampler: Sampler, batch_size: int) -> int:

@@ -7,7 +7,7 @@ epsilon, :mod:`isf.quality.gravity` the largest gravity load per direction, and
 functions on numpy arrays (scipy's qhull and HiGHS); see docs/quality.md.
 """
 
-from .contacts import ContactModelConfig, Contacts, grasp_contacts
+from .contacts import ContactModelConfig, Contacts, grasp_contacts, grasps_contacts
 from .grasp_quality import (
     MARGIN_TARGET,
     GraspQuality,
@@ -15,6 +15,7 @@ from .grasp_quality import (
     QualityConfig,
     contacts_quality,
     grasp_quality,
+    grasps_quality,
     object_properties,
     quality_rank_key,
 )
@@ -32,5 +33,6 @@ from .wrenches import (
 __all__ = ["CONE_EDGES", "ContactModelConfig", "Contacts", "GRAVITY", "GraspQuality",
            "MARGIN_TARGET", "ObjectProperties", "QualityConfig", "SIX_DIRECTIONS", "WrenchSpace",
            "cone_edges", "contact_wrenches", "contacts_quality", "epsilon_quality",
-           "force_closure", "grasp_contacts", "grasp_quality", "gravity_loads",
-           "object_properties", "positively_spans", "quality_rank_key", "resists_loads"]
+           "force_closure", "grasp_contacts", "grasp_quality", "grasps_contacts",
+           "grasps_quality", "gravity_loads", "object_properties", "positively_spans",
+           "quality_rank_key", "resists_loads"]

@@ -24,6 +24,9 @@
    torque about the normal and a tilt of the pad, which a single point contact cannot. A
    contact surface keeps at most ``surface_contacts`` contacts (farthest first again).
 
+:func:`grasps_contacts` builds the contacts of many grasps of one object at once (one
+nearest-point query, the patches of all grasps on padded arrays), the same as one at a time.
+
 Frame: every position and direction is in the object frame, metres.
 """
 
@@ -36,7 +39,7 @@ import numpy as np
 from ..gripper.model import Gripper
 from ..object.surface import ObjectSurface
 
-__all__ = ["ContactModelConfig", "Contacts", "grasp_contacts"]
+__all__ = ["ContactModelConfig", "Contacts", "grasp_contacts", "grasps_contacts"]
 
 
 @dataclass(frozen=True)
@@ -120,87 +123,157 @@ def grasp_contacts(gripper: Gripper, obj: ObjectSurface, T_object_gripper: np.nd
                    q: np.ndarray, config: ContactModelConfig | None = None) -> Contacts:
     """The contacts of the gripper at pose ``T_object_gripper`` (4, 4) and joints ``q``
     (n_joints,) on ``obj`` (see the module docstring)."""
+    return grasps_contacts(gripper, obj, np.asarray(T_object_gripper, dtype=float)[None],
+                           np.asarray(q, dtype=float)[None], config)[0]
+
+
+def grasps_contacts(gripper: Gripper, obj: ObjectSurface, T_object_gripper: np.ndarray,
+                    q: np.ndarray, config: ContactModelConfig | None = None) -> list[Contacts]:
+    """:func:`grasp_contacts` of many grasps at once: poses ``T_object_gripper`` (G, 4, 4) and
+    joints ``q`` (G, n_joints); the same contacts, computed for all grasps, contact surfaces
+    and patches together (one nearest-point query, padded arrays instead of a loop per patch)."""
     config = ContactModelConfig() if config is None else config
-    T = np.asarray(T_object_gripper, dtype=float)
-    used = gripper.point_rank < config.surface_points
-    local, local_normals = gripper.contact_points(np.asarray(q, dtype=float), used)
-    placed = local @ T[:3, :3].T + T[:3, 3]
-    dist, target = obj.nearest(placed)
-    facing = np.einsum("ij,ij->i", local_normals @ T[:3, :3].T, obj.normals[target])
-    touching = (dist <= config.contact_distance) & (facing <= -np.cos(config.max_normal_angle))
-    point_surface = gripper.point_surface[used]
-    points, normals, surfaces, patches = [], [], [], []
-    n_patches = 0
-    for k in range(len(gripper.surfaces)):
-        rows = np.flatnonzero(touching & (point_surface == k))
-        if not len(rows):
-            continue
-        inward = -obj.normals[target[rows]]
-        labels, count = _patch_labels(placed[rows], inward, config)
-        found = [_patch_contacts(placed[rows][labels == label], inward[labels == label], config)
-                 for label in range(count)]
-        corners = np.concatenate([c for c, _ in found])
-        normal = np.concatenate([np.repeat(n[None], len(c), axis=0) for c, n in found])
-        patch = np.concatenate([np.full(len(c), n_patches + j) for j, (c, _) in enumerate(found)])
-        keep = _farthest_first(corners - corners.mean(axis=0), config.surface_contacts, 0.0)
-        points.append(corners[keep])
-        normals.append(normal[keep])
-        surfaces.append(np.full(len(keep), k))
-        patches.append(patch[keep])
-        n_patches += count
+    poses = np.asarray(T_object_gripper, dtype=float).reshape(-1, 4, 4)
+    joints = np.asarray(q, dtype=float).reshape(len(poses), gripper.n_joints)
     names = tuple(s.name for s in gripper.surfaces)
-    if not points:
-        return Contacts(np.empty((0, 3)), np.empty((0, 3)), np.empty(0, int), np.empty(0, int),
-                        names)
-    return Contacts(np.concatenate(points), np.concatenate(normals), np.concatenate(surfaces),
-                    np.concatenate(patches), names)
+    used = gripper.point_rank < config.surface_points
+    point_surface = gripper.point_surface[used]
+    placed, normals = [], []
+    for T, joint in zip(poses, joints):
+        local, local_normals = gripper.contact_points(joint, used)
+        placed.append(local @ T[:3, :3].T + T[:3, 3])
+        normals.append(local_normals @ T[:3, :3].T)
+    if not poses.size or not point_surface.size:
+        return [_no_contacts(names) for _ in poses]
+    placed, normals = np.concatenate(placed), np.concatenate(normals)
+    dist, target = obj.nearest(placed)
+    facing = np.einsum("ij,ij->i", normals, obj.normals[target])
+    rows = np.flatnonzero((dist <= config.contact_distance)
+                          & (facing <= -np.cos(config.max_normal_angle)))
+    # groups: the touching points of one contact surface of one grasp, grasp-major
+    group = (rows // len(point_surface)) * len(names) + point_surface[rows % len(point_surface)]
+    order = np.argsort(group, kind="stable")
+    rows, group = rows[order], group[order]
+    groups, group_rows = np.unique(group, return_inverse=True)
+    points, valid = _padded(placed[rows], group_rows, len(groups))
+    inward, _ = _padded(-obj.normals[target[rows]], group_rows, len(groups))
+    local_patch, patch_count = _patch_labels(points, inward, valid, config)
+    # patches, numbered over all groups in order (within a group by their first point)
+    first_patch = np.cumsum(patch_count) - patch_count
+    point_patch = (first_patch[:, None] + local_patch)[valid]
+    by_patch = np.argsort(point_patch, kind="stable")
+    patch_points, patch_valid = _padded(points[valid][by_patch], point_patch[by_patch],
+                                        int(patch_count.sum()))
+    patch_inward, _ = _padded(inward[valid][by_patch], point_patch[by_patch],
+                              int(patch_count.sum()))
+    corners, corner_valid, patch_normal = _patch_contacts(patch_points, patch_inward,
+                                                          patch_valid, config)
+    # each group's contacts: its patches' corners, farthest first
+    patch_group = np.repeat(np.arange(len(groups)), patch_count)
+    corner_patch = np.repeat(np.arange(len(corners)), corner_valid.sum(axis=1))
+    surface_corners, surface_valid = _padded(corners[corner_valid], patch_group[corner_patch],
+                                             len(groups))
+    corner_patch, _ = _padded(corner_patch[:, None], patch_group[corner_patch], len(groups))
+    counts = surface_valid.sum(axis=1)
+    centres = surface_corners.sum(axis=1) / counts[:, None]  # as ndarray.mean: in order
+    keep = _farthest_first(surface_corners - centres[:, None], surface_valid,
+                           config.surface_contacts, 0.0)
+    grasp_of_group = groups // len(names)
+    per_grasp = [_no_contacts(names) for _ in poses]
+    for g in np.unique(grasp_of_group):
+        mine = np.flatnonzero(grasp_of_group == g)
+        picks = [(m, keep[m][keep[m] >= 0]) for m in mine]
+        patch = np.concatenate([corner_patch[m, k, 0].astype(int) for m, k in picks])
+        per_grasp[g] = Contacts(np.concatenate([surface_corners[m, k] for m, k in picks]),
+                                patch_normal[patch],
+                                np.concatenate([np.full(len(k), groups[m] % len(names))
+                                                for m, k in picks]),
+                                patch - first_patch[mine[0]], names)
+    return per_grasp
 
 
-def _patch_labels(points: np.ndarray, normals: np.ndarray,
-                  config: ContactModelConfig) -> tuple[np.ndarray, int]:
-    """Patch label of each touching point of one surface (M,) and the number of patches: the
-    connected components of the graph joining points within ``patch_gap`` whose normals differ
-    by less than ``patch_angle`` (labels spread as the smallest index of a component)."""
-    gram = points @ points.T
-    squared = np.diag(gram)
-    near = squared[:, None] + squared[None, :] - 2.0 * gram  # squared distances
-    linked = (near <= config.patch_gap ** 2) & (normals @ normals.T >= np.cos(config.patch_angle))
-    labels = np.arange(len(points))
+def _no_contacts(names: tuple[str, ...]) -> Contacts:
+    return Contacts(np.empty((0, 3)), np.empty((0, 3)), np.empty(0, int), np.empty(0, int), names)
+
+
+def _padded(values: np.ndarray, rows: np.ndarray, count: int) -> tuple[np.ndarray, np.ndarray]:
+    """``values`` (N, k) sorted by their row ``rows`` (N,) laid out as ``count`` rows padded
+    with zeros, (count, M, k), and the mask of real entries (count, M), in their order."""
+    sizes = np.bincount(rows, minlength=count)
+    slot = np.arange(len(rows)) - np.repeat(np.cumsum(sizes) - sizes, sizes)
+    padded = np.zeros((count, int(sizes.max(initial=1)), values.shape[1]))
+    valid = np.zeros(padded.shape[:2], dtype=bool)
+    padded[rows, slot] = values
+    valid[rows, slot] = True
+    return padded, valid
+
+
+def _patch_labels(points: np.ndarray, normals: np.ndarray, valid: np.ndarray,
+                  config: ContactModelConfig) -> tuple[np.ndarray, np.ndarray]:
+    """Patch of each touching point of each group (G, M) (padded, mask ``valid``), numbered
+    from 0 per group in the order of their first point, and the number of patches per group
+    (G,): the connected components of the graph joining points within ``patch_gap`` whose
+    normals differ by less than ``patch_angle`` (labels spread as the smallest index of a
+    component, by pointer jumping)."""
+    gram = points @ points.transpose(0, 2, 1)
+    squared = np.diagonal(gram, axis1=1, axis2=2)
+    near = squared[:, :, None] + squared[:, None, :] - 2.0 * gram  # squared distances
+    linked = ((near <= config.patch_gap ** 2)
+              & (normals @ normals.transpose(0, 2, 1) >= np.cos(config.patch_angle))
+              & valid[:, :, None] & valid[:, None, :])
+    size = points.shape[1]
+    linked[:, np.arange(size), np.arange(size)] = True  # padding: a component of its own
+    labels = np.broadcast_to(np.arange(size), valid.shape)
     while True:
-        spread = np.where(linked, labels[None, :], len(points)).min(axis=1)
-        spread = spread[spread]  # pointer jumping: far fewer rounds on long chains
+        spread = np.where(linked, labels[:, None, :], size).min(axis=2)
+        spread = np.take_along_axis(spread, spread, axis=1)  # pointer jumping
         if np.array_equal(spread, labels):
             break
         labels = spread
-    _, labels = np.unique(labels, return_inverse=True)
-    return labels, int(labels.max()) + 1
+    roots = (labels == np.arange(size)) & valid
+    number = np.cumsum(roots, axis=1) - 1
+    return np.take_along_axis(number, labels, axis=1), roots.sum(axis=1)
 
 
-def _patch_contacts(points: np.ndarray, normals: np.ndarray,
-                    config: ContactModelConfig) -> tuple[np.ndarray, np.ndarray]:
-    """The contact positions of one patch (its centroid, or its corners) (c, 3) and its unit
-    inward normal (3,)."""
-    normal = normals.mean(axis=0)
-    normal /= np.linalg.norm(normal)
-    centre = points.mean(axis=0)
-    flat = points - centre
-    flat -= np.outer(flat @ normal, normal)  # onto the patch's mean plane
-    reach = np.einsum("ij,ij->i", flat, flat)
-    if len(points) < 3 or 2.0 * np.sqrt(reach.max()) < config.point_patch_size:
-        return centre[None], normal
-    chosen = _farthest_first(flat, config.patch_corners, 0.5 * config.point_patch_size)
-    return centre + flat[chosen], normal
+def _patch_contacts(points: np.ndarray, normals: np.ndarray, valid: np.ndarray,
+                    config: ContactModelConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The contact positions of each patch (its centroid, or its corners) (P, c, 3) with their
+    mask (P, c), and its unit inward normal (P, 3), from its points and object normals
+    (P, M, 3), padded (mask ``valid``)."""
+    counts = valid.sum(axis=1)
+    normal = normals.sum(axis=1) / counts[:, None]  # as ndarray.mean: summed in order
+    centre = points.sum(axis=1) / counts[:, None]
+    flat = points - centre[:, None]
+    for k, m in enumerate(counts):  # the BLAS products per patch, as on one patch
+        normal[k] /= np.linalg.norm(normal[k])
+        flat[k, :m] -= np.outer(flat[k, :m] @ normal[k], normal[k])  # onto its mean plane
+    reach = np.where(valid, np.einsum("pij,pij->pi", flat, flat), -np.inf)
+    spread = (counts >= 3) & (2.0 * np.sqrt(reach.max(axis=1)) >= config.point_patch_size)
+    chosen = _farthest_first(flat, valid, config.patch_corners, 0.5 * config.point_patch_size)
+    chosen[~spread, 1:] = -1
+    corners = centre[:, None] + np.take_along_axis(flat, np.maximum(chosen, 0)[:, :, None], axis=1)
+    corners[~spread, 0] = centre[~spread]
+    return corners, chosen >= 0, normal
 
 
-def _farthest_first(offsets: np.ndarray, count: int, min_gap: float) -> list[int]:
-    """Up to ``count`` rows of ``offsets`` (M, 3) (from a centre), farthest first: the one
-    farthest from the centre, then each time the one farthest from those picked, while that
-    is at least ``min_gap`` away (metres)."""
-    chosen = [int(np.argmax(np.einsum("ij,ij->i", offsets, offsets)))]
-    gaps = np.full(len(offsets), np.inf)
-    while len(chosen) < min(count, len(offsets)):
-        gaps = np.minimum(gaps, np.linalg.norm(offsets - offsets[chosen[-1]], axis=1))
-        if gaps.max() <= min_gap:
+def _farthest_first(offsets: np.ndarray, valid: np.ndarray, count: int,
+                    min_gap: float) -> np.ndarray:
+    """Up to ``count`` entries of each row of ``offsets`` (R, M, 3) (from a centre; padded, mask
+    ``valid``), farthest first: the one farthest from the centre, then each time the one
+    farthest from those picked, while that is at least ``min_gap`` away (metres); (R, count)
+    indices, -1 past the last."""
+    rows = np.arange(len(offsets))
+    squared = np.where(valid, np.einsum("pij,pij->pi", offsets, offsets), -np.inf)
+    chosen = np.full((len(offsets), count), -1)
+    chosen[:, 0] = np.argmax(squared, axis=1)
+    gaps = np.where(valid, np.inf, -np.inf)
+    going = valid.any(axis=1)
+    for pick in range(1, min(count, offsets.shape[1])):
+        going &= valid.sum(axis=1) > pick
+        if not going.any():
             break
-        chosen.append(int(np.argmax(gaps)))
+        step = offsets - offsets[rows, chosen[:, pick - 1]][:, None]
+        gaps = np.minimum(gaps, np.sqrt(np.add.reduce(step * step, axis=2)))  # as linalg.norm
+        going &= gaps.max(axis=1) > min_gap
+        chosen[going, pick] = np.argmax(gaps[going], axis=1)
     return chosen

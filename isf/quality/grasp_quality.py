@@ -24,18 +24,29 @@ import numpy as np
 
 from ..gripper.model import Gripper
 from ..object.surface import ObjectSurface
-from .contacts import ContactModelConfig, Contacts, grasp_contacts
-from .gravity import GRAVITY, SIX_DIRECTIONS, gravity_loads, resists_loads
-from .wrenches import CONE_EDGES, WrenchSpace, contact_wrenches, positively_spans
+from .contacts import ContactModelConfig, Contacts, grasp_contacts, grasps_contacts
+from .gravity import GRAVITY, SIX_DIRECTIONS, _LoadBalance, gravity_loads, resists_loads
+from .wrenches import CONE_EDGES, WrenchSpace, _cross, contact_wrenches, positively_spans
 
 __all__ = ["GraspQuality", "MARGIN_TARGET", "ObjectProperties", "QualityConfig",
-           "contacts_quality", "grasp_quality", "object_properties", "quality_rank_key"]
+           "contacts_quality", "grasp_quality", "grasps_quality", "object_properties",
+           "quality_rank_key"]
 
 MARGIN_TARGET = 1.0
 """Smallest gravity margin (multiples of the object's weight) at which :func:`quality_rank_key`
 counts a grasp as holding in every direction."""
 
 _DIRECTIONS = np.array(list(SIX_DIRECTIONS.values()))
+
+_MARGIN_RESOLUTION = 1.0 / 4096.0
+"""The ranking narrows the bounds of a held margin below :data:`MARGIN_TARGET` by feasibility
+tests down to this width; then it computes the margin (see :class:`_HigherMarginFirst`):
+near-duplicate grasps, whose margins no bound separates, cost about 12 tests and the margin."""
+
+_MARGIN_SEPARATION = 1e-6
+"""Bounds settle the order of two held margins only when they are this far apart (the
+feasibility tests' tolerance and the wrench space's joggle are far smaller); closer, the
+values (computed) decide."""
 
 
 @dataclass(frozen=True)
@@ -93,26 +104,66 @@ def object_properties(obj: ObjectSurface) -> ObjectProperties:
     """The centre of mass and radius of ``obj`` (see :class:`ObjectProperties`)."""
     center = obj.centroid
     if obj.is_mesh:
-        import trimesh
+        center = _solid_center_of_mass(obj.mesh_vertices, obj.mesh_faces)
+        if center is None:  # not closed: the centroid of the surface
+            import trimesh
 
-        mesh = trimesh.Trimesh(obj.mesh_vertices, obj.mesh_faces, process=False)
-        center = mesh.center_mass if mesh.is_volume else mesh.triangles_center.T @ (
-            mesh.area_faces / mesh.area)
+            mesh = trimesh.Trimesh(obj.mesh_vertices, obj.mesh_faces, process=False)
+            center = mesh.triangles_center.T @ (mesh.area_faces / mesh.area)
     center = np.asarray(center, dtype=float)
     radius = float(np.linalg.norm(obj.points - center, axis=1).max())
     return ObjectProperties(center, max(radius, 1e-6))
+
+
+def _solid_center_of_mass(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray | None:
+    """The centre of mass (3,) of the solid of uniform density a triangle mesh (vertices (V, 3),
+    faces (F, 3)) bounds, or None when it bounds none: trimesh's ``is_volume`` and
+    ``center_mass`` (the same tests, the same arithmetic, the same bits) without building a
+    ``trimesh.Trimesh``, whose caches cost ten times more. A mesh bounds a solid when every
+    edge is shared by exactly two faces that run along it in opposite directions (closed and
+    consistently wound) and its signed volume is positive (outward normals). The centre is
+    the first moment of the signed tetrahedra (origin, triangle) over their volume (Eberly,
+    "Polyhedral mass properties", Geometric Tools 2002, as trimesh integrates it)."""
+    vertices = np.asarray(vertices, dtype=np.float64)
+    faces = np.asarray(faces, dtype=np.int64)
+    if not len(faces):
+        return None
+    edges = faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    keys = edges.min(axis=1) * len(vertices) + edges.max(axis=1)  # the undirected edge
+    order = np.argsort(keys, kind="stable")
+    keys = keys[order]
+    if not (np.array_equal(keys[0::2], keys[1::2]) and np.all(keys[1:-1:2] != keys[2::2])):
+        return None  # an edge not shared by exactly two faces
+    pairs = edges[order].reshape(-1, 4)
+    if not np.array_equal(pairs[:, 1], pairs[:, 2]):
+        return None  # two faces running along an edge the same way: inconsistent winding
+    triangles = vertices[faces]
+    sides = triangles[:, 1:, :] - triangles[:, :2, :]
+    crosses = _cross(sides[:, 0], sides[:, 1])  # twice the area times the normal
+    a, b, c = triangles[:, 0, :], triangles[:, 1, :], triangles[:, 2, :]
+    f1 = a + b + c
+    f2 = a ** 2 + b ** 2 + a * b + c * f1
+    volume = (crosses[:, 0] * f1[:, 0]).sum() / 6.0
+    center = np.ascontiguousarray((crosses * f2).T).sum(axis=1) / 24.0 / volume
+    if not (np.isfinite(center).all() and volume > 0.0):
+        return None
+    return center
 
 
 class GraspQuality:
     """How well a grasp's contacts resist loads (see :mod:`isf.quality`), from its contacts on an
     object with given :class:`ObjectProperties` under a :class:`QualityConfig`.
 
-    What the ranking needs is computed at once: :attr:`com_offset` and :attr:`held_margin`,
-    which for a grasp that holds its weight in every direction is a feasibility test per
-    direction (:func:`isf.quality.gravity.resists_loads`), no wrench space. The grasp wrench
-    space (:class:`isf.quality.wrenches.WrenchSpace`) and the largest loads are built when one
-    of :attr:`epsilon`, :attr:`force_closure`, :attr:`gravity_load`, :attr:`gravity_margin` or
-    :attr:`min_margin` is first read (a plan file writes them for the grasps it keeps), then kept.
+    What the ranking needs is computed at once: :attr:`com_offset`, and whether the grasp holds
+    its weight in every direction, a feasibility test per direction
+    (:func:`isf.quality.gravity.resists_loads`), no wrench space; then :attr:`held_margin` is
+    1 (or 0 when some direction resists no load at any grip). Otherwise the ranking compares
+    held margins by bounds that further feasibility tests narrow, only as far as the order
+    needs (:func:`quality_rank_key`). The grasp wrench space
+    (:class:`isf.quality.wrenches.WrenchSpace`) and the largest loads are built when one of
+    :attr:`held_margin`, :attr:`epsilon`, :attr:`force_closure`, :attr:`gravity_load`,
+    :attr:`gravity_margin` or :attr:`min_margin` is first read (a plan file writes them for the
+    grasps it keeps), then kept.
 
     Attributes:
         friction: the friction coefficient used.
@@ -121,8 +172,6 @@ class GraspQuality:
         radius: the object radius torques were divided by, metres.
         com_offset: distance from the centroid of the contacts to the centre of mass, metres
             (the object radius when there are no contacts).
-        held_margin: the smallest gravity margin capped at :data:`MARGIN_TARGET`:
-            ``min(min_margin, MARGIN_TARGET)``.
     """
 
     def __init__(self, contacts: Contacts, properties: ObjectProperties,
@@ -136,18 +185,68 @@ class GraspQuality:
         self.com_offset = (float(np.linalg.norm(contacts.points.mean(axis=0)
                                                 - properties.center_of_mass))
                            if contacts.count else self.radius)
-        weight = config.mass * GRAVITY
-        resisted = resists_loads(contacts, config.friction, properties.center_of_mass,
-                                 _DIRECTIONS, MARGIN_TARGET * weight, config.grip_force,
-                                 config.cone_edges, properties.radius, until_failure=True)
-        if resisted.all():
+        self._weight = config.mass * GRAVITY
+        self._balance = (_LoadBalance(contacts, config.friction, properties.center_of_mass,
+                                      config.grip_force, config.cone_edges, properties.radius)
+                         if contacts.count else None)
+        # what is known of each direction's margin (capped at the target): in [low, high)
+        self._direction_low = np.zeros(len(_DIRECTIONS))
+        self._direction_high = np.full(len(_DIRECTIONS), np.inf)
+        for k, d in enumerate(_DIRECTIONS):
+            if self._balance is None or not self._balance.resists(d, MARGIN_TARGET * self._weight):
+                self._direction_high[k] = MARGIN_TARGET
+                break
+            self._direction_low[k] = MARGIN_TARGET
+        else:
             self.held_margin = MARGIN_TARGET
-        elif not self._origin_may_be_inside and not resists_loads(
+            return
+        if not self._origin_may_be_inside and not resists_loads(
                 contacts, config.friction, properties.center_of_mass, _DIRECTIONS, 1.0, None,
                 config.cone_edges, properties.radius, until_failure=True).all():
             self.held_margin = 0.0  # a direction in which no grip resists any load
+
+    @cached_property
+    def held_margin(self) -> float:
+        """The smallest gravity margin capped at :data:`MARGIN_TARGET`:
+        ``min(min_margin, MARGIN_TARGET)``."""
+        return min(self.min_margin, MARGIN_TARGET)
+
+    def _margin_bounds(self) -> tuple[float, float, bool]:
+        """What is known of :attr:`held_margin`: ``(value, value, True)`` once computed, else
+        ``(low, high, False)`` with the margin in ``[low, high)``."""
+        if "held_margin" in self.__dict__:
+            return self.held_margin, self.held_margin, True
+        return float(self._direction_low.min()), float(self._direction_high.min()), False
+
+    def _refine_margin(self, other_low: float, other_high: float) -> None:
+        """Narrow the bounds of :attr:`held_margin` towards settling its order with a margin
+        known to lie in ``[other_low, other_high)`` (a value when they are equal): a test
+        whether the smallest margin reaches a load, against a value ``v`` at ``v`` minus, then
+        plus, :data:`_MARGIN_SEPARATION`, against bounds at the middle of this margin's bounds.
+        It tests the directions whose bounds do not settle it, one feasibility test each
+        (:func:`isf.quality.gravity.resists_loads`), until one fails, and keeps each
+        direction's bounds. Bounds no wider than :data:`_MARGIN_RESOLUTION` are replaced by
+        the value, computed (wrench space or linear programme)."""
+        if "held_margin" in self.__dict__:
+            return
+        low, high, _ = self._margin_bounds()
+        if other_low == other_high:
+            inside = [t for t in (other_low - _MARGIN_SEPARATION, other_low + _MARGIN_SEPARATION)
+                      if low < t < high]
+            load = inside[0] if inside and high - low > _MARGIN_RESOLUTION else None
         else:
-            self.held_margin = min(self.min_margin, MARGIN_TARGET)
+            load = 0.5 * (low + high) if high - low > _MARGIN_RESOLUTION else None
+        if load is None:
+            self.held_margin  # noqa: B018 - computes and keeps it
+            return
+        for k in np.argsort(self._direction_high, kind="stable"):  # likeliest to fail first
+            if self._direction_low[k] >= load:
+                continue
+            if self._balance.resists(_DIRECTIONS[k], load * self._weight):
+                self._direction_low[k] = load
+            else:
+                self._direction_high[k] = load
+                break
 
     def __repr__(self) -> str:
         return (f"GraspQuality(friction={self.friction}, contacts={self.contacts}, "
@@ -239,6 +338,60 @@ def grasp_quality(gripper: Gripper, obj: ObjectSurface, T_object_gripper: np.nda
     return contacts_quality(contacts, properties, config)
 
 
+def grasps_quality(gripper: Gripper, obj: ObjectSurface, T_object_gripper: np.ndarray,
+                   q: np.ndarray, config: QualityConfig | None = None,
+                   properties: ObjectProperties | None = None) -> list[GraspQuality]:
+    """:func:`grasp_quality` of many grasps of one object: poses ``T_object_gripper``
+    (G, 4, 4) and joints ``q`` (G, n_joints), their contact models built together
+    (:func:`isf.quality.contacts.grasps_contacts`); the same records."""
+    config = QualityConfig() if config is None else config
+    properties = object_properties(obj) if properties is None else properties
+    return [contacts_quality(contacts, properties, config)
+            for contacts in grasps_contacts(gripper, obj, T_object_gripper, q,
+                                            config.contact_model)]
+
+
+@total_ordering
+class _HigherMarginFirst:
+    """A sort-key element that orders grasps by higher :attr:`GraspQuality.held_margin` first,
+    deciding from bounds where it can: a held margin known to lie in ``[low, high)`` is below
+    one known to be at least ``high`` (by :data:`_MARGIN_SEPARATION` at least). While two
+    bounds do not settle it, the wider one is narrowed (:meth:`GraspQuality._refine_margin`, a
+    feasibility test, down to :data:`_MARGIN_RESOLUTION`, then the value). The order is the
+    one the values give."""
+
+    __slots__ = ("quality",)
+    __hash__ = None
+
+    def __init__(self, quality: GraspQuality | None):
+        self.quality = quality
+
+    def _bounds(self) -> tuple[float, float, bool]:
+        return (0.0, 0.0, True) if self.quality is None else self.quality._margin_bounds()
+
+    def _compare(self, other: _HigherMarginFirst) -> int:
+        """-1, 0 or 1 as this held margin is below, equal to or above the other's."""
+        while True:
+            low, high, known = self._bounds()
+            other_low, other_high, other_known = other._bounds()
+            if known and other_known:
+                return (low > other_low) - (low < other_low)
+            if high + _MARGIN_SEPARATION <= other_low:
+                return -1
+            if other_high + _MARGIN_SEPARATION <= low:
+                return 1
+            if not known and (other_known or high - low >= other_high - other_low):
+                self.quality._refine_margin(other_low, other_high)
+            else:
+                other.quality._refine_margin(low, high)
+
+    def __eq__(self, other) -> bool:
+        return self._compare(other) == 0
+
+    def __lt__(self, other) -> bool:
+        return self._compare(other) > 0
+
+
 @total_ordering
 class _HigherEpsilonFirst:
     """A sort-key element that orders grasps by higher epsilon first and reads the epsilon
@@ -261,12 +414,12 @@ class _HigherEpsilonFirst:
 
 
 def quality_rank_key(quality: GraspQuality | None, mean_distance: float) -> tuple:
-    """Sort key (lower first) of a grasp by its quality (smallest gravity margin up to
-    :data:`MARGIN_TARGET`, :attr:`GraspQuality.held_margin`, then
-    :attr:`GraspQuality.com_offset`, then higher epsilon, read only to break a tie of the two
-    before it), then its fitting error ``mean_distance`` (metres); a grasp without a quality
-    record (None) comes after every grasp with one."""
+    """Sort key (lower first) of a grasp by its quality (higher smallest gravity margin up to
+    :data:`MARGIN_TARGET`, :attr:`GraspQuality.held_margin`, first: compared by bounds where
+    they settle the order; then :attr:`GraspQuality.com_offset`, then higher epsilon, read
+    only to break a tie of the two before it), then its fitting error ``mean_distance``
+    (metres); a grasp without a quality record (None) comes after every grasp with one."""
     if quality is None:
-        return (1, 0.0, 0.0, _HigherEpsilonFirst(None), mean_distance)
-    return (0, -quality.held_margin, quality.com_offset, _HigherEpsilonFirst(quality),
+        return (1, _HigherMarginFirst(None), 0.0, _HigherEpsilonFirst(None), mean_distance)
+    return (0, _HigherMarginFirst(quality), quality.com_offset, _HigherEpsilonFirst(quality),
             mean_distance)

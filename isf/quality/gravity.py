@@ -38,7 +38,7 @@ from scipy.linalg import block_diag
 from scipy.optimize import linprog, nnls
 
 from .contacts import Contacts
-from .wrenches import CONE_EDGES, cone_edges
+from .wrenches import CONE_EDGES, _cross, cone_edges
 
 __all__ = ["GRAVITY", "RESIDUAL_TOLERANCE", "SIX_DIRECTIONS", "gravity_loads", "resists_loads"]
 
@@ -61,7 +61,7 @@ def _edge_forces_and_torques(contacts: Contacts, friction: float, center: np.nda
     ``center`` (3,) (N m per N of normal force)."""
     forces = cone_edges(contacts.normals, friction, edges)
     arms = contacts.points - np.asarray(center, dtype=float)
-    return forces, np.cross(arms[:, None, :], forces)
+    return forces, _cross(arms[:, None, :], forces)
 
 
 def gravity_loads(contacts: Contacts, friction: float, center: np.ndarray,
@@ -120,25 +120,40 @@ def resists_loads(contacts: Contacts, friction: float, center: np.ndarray, direc
     directions = np.asarray(directions, dtype=float).reshape(-1, 3)
     if contacts.count == 0:
         return np.zeros(len(directions), dtype=bool) if load > 0 else np.ones(len(directions), bool)
-    forces, torques = _edge_forces_and_torques(contacts, friction, center, edges)
-    n_vars = contacts.count * edges
-    bounded = max_normal_force is not None
-    system = np.zeros((7, n_vars + 1) if bounded else (6, n_vars))  # the budget and its slack last
-    system[:3, :n_vars] = forces.reshape(-1, 3).T
-    system[3:6, :n_vars] = torques.reshape(-1, 3).T / float(torque_scale)
-    target = np.zeros(len(system))
-    if bounded:
-        system[6] = 1.0
-        target[6] = max_normal_force
-    tolerance = RESIDUAL_TOLERANCE * (abs(load) + (max_normal_force if bounded else 0.0))
+    balance = _LoadBalance(contacts, friction, center, max_normal_force, edges, torque_scale)
     resisted = np.zeros(len(directions), dtype=bool)
     for k, d in enumerate(directions):
-        target[:3] = -load * d
-        try:
-            _, residual = nnls(system, target, maxiter=50 * (n_vars + 1))
-        except RuntimeError:  # no convergence (not seen in practice): False, as documented
-            residual = np.inf
-        resisted[k] = residual <= tolerance
+        resisted[k] = balance.resists(d, load)
         if until_failure and not resisted[k]:
             break
     return resisted
+
+
+class _LoadBalance:
+    """The feasibility system of :func:`resists_loads` for one set of contacts (at least one),
+    built once and asked about many loads and directions (:meth:`resists`)."""
+
+    def __init__(self, contacts: Contacts, friction: float, center: np.ndarray,
+                 max_normal_force: float | None, edges: int, torque_scale: float):
+        forces, torques = _edge_forces_and_torques(contacts, friction, center, edges)
+        n_vars = contacts.count * edges
+        bounded = max_normal_force is not None
+        system = np.zeros((7, n_vars + 1) if bounded else (6, n_vars))  # budget, slack last
+        system[:3, :n_vars] = forces.reshape(-1, 3).T
+        system[3:6, :n_vars] = torques.reshape(-1, 3).T / float(torque_scale)
+        self._target = np.zeros(len(system))
+        if bounded:
+            system[6] = 1.0
+            self._target[6] = max_normal_force
+        self._system, self._budget = system, (max_normal_force if bounded else 0.0)
+        self._maxiter = 50 * (n_vars + 1)
+
+    def resists(self, direction: np.ndarray, load: float) -> bool:
+        """Whether the load ``load`` (N) along the unit ``direction`` (3,) is resisted."""
+        target = self._target
+        target[:3] = -load * np.asarray(direction, dtype=float)
+        try:
+            _, residual = nnls(self._system, target, maxiter=self._maxiter)
+        except RuntimeError:  # no convergence (not seen in practice): False, as documented
+            return False
+        return bool(residual <= RESIDUAL_TOLERANCE * (abs(load) + self._budget))
