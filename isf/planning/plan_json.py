@@ -67,6 +67,7 @@ def _grasp_to_dict(rank: int, grasp: Grasp) -> dict:
         "pieces": grasp.pieces,
         "repaired": bool(grasp.repaired),
         "settled": grasp.settled,
+        "within_bound": grasp.within_bound,
         "quality": None if grasp.quality is None else grasp.quality.to_dict(),
         "convergence": _convergence(fit),
     }

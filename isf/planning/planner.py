@@ -39,7 +39,9 @@ surfaces, and the links behind them can end inside the object.
 Ranking: collision-free grasps first, then grasps whose every contact surface
 touches the object, then (on a scene) grasps that rest on one piece of the scene's surface
 rather than on several (:mod:`isf.scene.segments`), then (on a scene) the grasps settled within
-the scene's contact allowance (:mod:`isf.scene.settle`), then by mean point-to-plane distance
+the scene's contact allowance (:mod:`isf.scene.settle`), then (on a scene) the settled grasps
+whose fingers keep within their local depth bound (:mod:`isf.scene.finger_depth`), then by mean
+point-to-plane distance
 (lower first): the paper's ranking, ``rank="fit"``. By default (``rank="quality"``) the valid
 grasps are ranked by what their contacts resist instead (:mod:`isf.quality`:
 :func:`isf.quality.grasp_quality.quality_rank_key`: holding their weight in every gravity direction first, then
@@ -47,8 +49,8 @@ contacts nearest the centre of mass, then the Ferrari-Canny epsilon, then the fi
 ahead of the others in the order above.
 After the ranking, distinct grasps come first: a grasp within 1 cm and 30 degrees
 (about the TCP, under the gripper's symmetry) of a better one is marked ``duplicate_of`` and
-ranked after the distinct ones of its tier (valid and settled, valid but unsettled, other
-collision-free, colliding;
+ranked after the distinct ones of its tier (valid and settled within the bound, valid and
+settled beyond it, valid but unsettled, other collision-free, colliding;
 :mod:`isf.planning.diversity`).
 
 Scenes: :func:`plan` takes an :class:`isf.scene.Scene` (what depth cameras saw) wherever it
@@ -125,6 +127,11 @@ class Grasp:
             state's), False when a collision-free grasp could not be (it keeps its planned
             state and ranks after the settled ones); None on an object or for a grasp that
             collides.
+        within_bound: on a scene, for a settled grasp, True when its fingers' local depth
+            bound (:mod:`isf.scene.finger_depth`: depth into the observed surface plus the
+            local scatter margin) is within the collision tolerance, False when it is not (it
+            ranks after the settled grasps within it, before the unsettled ones); None
+            otherwise.
         duplicate_of: the rank (from 1) of the better grasp this one repeats (within the
             run's :class:`isf.planning.diversity.Diversity`), or None for a distinct grasp.
         quality: what its contacts resist (:func:`isf.quality.grasp_quality.grasp_quality`), computed for
@@ -140,6 +147,7 @@ class Grasp:
     settled: bool | None = None
     duplicate_of: int | None = None
     quality: GraspQuality | None = None
+    within_bound: bool | None = None
 
     @property
     def T_object_gripper(self) -> np.ndarray:
@@ -181,14 +189,17 @@ class Grasp:
 
     def sort_key(self) -> tuple:
         """Ranking key: collision-free, then :attr:`in_contact`, then one piece, then settled
-        (on a scene), then mean distance; for a grasp with a :attr:`quality` record (a plan ranked by quality),
+        (on a scene), then :attr:`within_bound`, then mean distance; for a grasp with a
+        :attr:`quality` record (a plan ranked by quality),
         :func:`isf.quality.grasp_quality.quality_rank_key` (quality, then mean distance) instead of the mean
         distance."""
         if self.quality is None:
             return (not self.collision_free, not self.in_contact, not self.one_piece,
-                    self.settled is False, self.fit.mean_distance, self.sample_index)
+                    self.settled is False, self.within_bound is False, self.fit.mean_distance,
+                    self.sample_index)
         return (not self.collision_free, not self.in_contact, not self.one_piece,
-                self.settled is False, *quality_rank_key(self.quality, self.fit.mean_distance),
+                self.settled is False, self.within_bound is False,
+                *quality_rank_key(self.quality, self.fit.mean_distance),
                 self.sample_index)
 
 
@@ -282,8 +293,8 @@ def _distinct_first(grasps: list[Grasp], gripper: Gripper, diversity: Diversity)
     if not grasps:
         return grasps
     T_object_tcp = np.array([g.T_object_gripper for g in grasps]) @ gripper.T_root_tcp
-    tiers = np.array([(0 if g.settled is not False else 1) if g.valid else 2 if g.collision_free
-                      else 3 for g in grasps])
+    tiers = np.array([(2 if g.settled is False else 1 if g.within_bound is False else 0)
+                      if g.valid else 3 if g.collision_free else 4 for g in grasps])
     order, duplicate_of = distinct_first(
         T_object_tcp, symmetry_rotations(gripper, int(diversity.symmetry)), diversity.distance,
         diversity.angle, tiers)
@@ -463,12 +474,13 @@ def plan(
     def record(index: int, proposal: Proposal, result: FitResult, report: CollisionReport,
                repaired: bool) -> Outcome:
         """Keep a sample's grasp and return its outcome for the sampler."""
-        settled = None
+        settled = within_bound = None
         if settler is not None:
-            result, report, settled = settler.settle(result, report)
+            result, report, settled, within_bound = settler.settle(result, report)
         pieces = None if scene is None else scene.segments.touched(
             gripper, result.T_object_gripper, result.q, config.contact_distance)
-        grasp = Grasp(result, report, dict(proposal.record), index, pieces, repaired, settled)
+        grasp = Grasp(result, report, dict(proposal.record), index, pieces, repaired, settled,
+                      within_bound=within_bound)
         grasps.append(grasp)
         if progress is not None:
             progress(len(grasps), samples, grasp)

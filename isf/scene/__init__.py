@@ -7,6 +7,7 @@ takes a scene wherever it takes an object. See docs/tutorial-depth-camera.md for
 """
 
 from .camera import CameraIntrinsics, camera_pose, parse_intrinsics
+from .finger_depth import FingerDepth
 from .loading import (
     ISOLATION_NEIGHBOURS,
     ISOLATION_RADIUS,
@@ -23,6 +24,7 @@ from .views import SceneView
 
 __all__ = [
     "CameraIntrinsics",
+    "FingerDepth",
     "ISOLATION_NEIGHBOURS",
     "ISOLATION_RADIUS",
     "NOISE_MARGIN",

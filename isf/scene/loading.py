@@ -85,6 +85,10 @@ class Scene:
         noise: the surface's depth noise, metres: the median over its points of the RMS
             distance of a point's neighbours from its local plane (step 3 of
             :func:`load_scene`), before the smoothing.
+        scatter: (N,) each surface point's local scatter, metres: the RMS distance of its
+            neighbours from its local plane, before the smoothing (the sensor noise on a smooth
+            face, more where the neighbourhood bends over an edge; :mod:`isf.scene.finger_depth`).
+            None for a scene built without it.
     """
 
     surface: ObjectSurface
@@ -95,6 +99,7 @@ class Scene:
     observed: int
     name: str = "scene"
     noise: float = 0.0
+    scatter: np.ndarray | None = None
 
     @property
     def obstacles(self) -> tuple[Plane, ...]:
@@ -170,13 +175,14 @@ def load_scene(
                 "camera pose, or plan without --table")
         points, camera_of = points[above], camera_of[above]
         given = None if given is None else given[above]
-    surface, noise = _surface(points, given, camera_of, cameras, float(voxel_size), label)
+    surface, scatter = _surface(points, given, camera_of, cameras, float(voxel_size), label)
     unseen = UnseenSpace(tuple(ViewDepth.from_depth(o.depth, o.intrinsics, o.T_scene_camera)
                                for o in observations))
     scene = Scene(surface, plane, unseen, SceneSegments.of(surface.points, surface.normals,
                                                            surface.spacing),
                   np.array([o.T_scene_camera for o in observations]),
-                  sum(len(o.points) for o in observations), label, noise)
+                  sum(len(o.points) for o in observations), label, float(np.median(scatter)),
+                  scatter)
     logger.info("%r", scene)
     return scene
 
@@ -198,9 +204,9 @@ def _views(source, **single) -> list[SceneView]:
 
 
 def _surface(points: np.ndarray, given: np.ndarray | None, camera_of: np.ndarray,
-             cameras: np.ndarray, voxel: float, label: str) -> tuple[ObjectSurface, float]:
-    """Thin, smooth and give camera-facing normals to the points above the table; also the
-    surface's noise (``Scene.noise``), metres."""
+             cameras: np.ndarray, voxel: float, label: str) -> tuple[ObjectSurface, np.ndarray]:
+    """Thin, smooth and give camera-facing normals to the points above the table; also each
+    point's local scatter (``Scene.scatter``; its median is ``Scene.noise``), (N,) metres."""
     labels, n_vox = voxel_labels(points, voxel)
     _, first = np.unique(labels, return_index=True)
     camera_of = camera_of[first]
@@ -222,13 +228,13 @@ def _surface(points: np.ndarray, given: np.ndarray | None, camera_of: np.ndarray
         normals = estimate_normals(points, neighbours)
     centres = points[neighbours].mean(axis=1)
     scatter = np.einsum("ikj,ij->ik", points[neighbours] - centres[:, None], normals)
-    noise = float(np.median(np.sqrt(np.mean(scatter ** 2, axis=1))))
+    local_scatter = np.sqrt(np.mean(scatter ** 2, axis=1))
     if given is None:
         points = points - np.einsum("ij,ij->i", points - centres, normals)[:, None] * normals
     towards = cameras[camera_of] - points
     normals = np.where((np.einsum("ij,ij->i", normals, towards) < 0)[:, None], -normals, normals)
     return ObjectSurface(points=points, normals=normals, spacing=max(spacing, voxel), name=label,
-                         viewpoints=cameras), noise
+                         viewpoints=cameras), local_scatter
 
 
 def _not_isolated(points: np.ndarray, radius: float) -> np.ndarray:

@@ -31,6 +31,13 @@ At most :data:`SETTLE_STEPS` moves are made; the settled state is scored afresh
 surface. A grasp that cannot be settled keeps its planned pose and joints and is marked
 unsettled (:attr:`Settled.settled`); the planner ranks it after the settled ones.
 
+The allowance is one noise width for the whole surface; at an object's edge the observation is
+worse (:mod:`isf.scene.finger_depth`). Each settled grasp is also told whether its fingers'
+local depth bound (depth into the observed surface plus ``NOISE_MARGIN`` local scatter widths,
+point by point) is within the collision tolerance (:attr:`Settled.within_bound`); the planner
+ranks the settled grasps beyond it after those within it and before the unsettled ones
+(measured in docs/benchmark-scenes.md).
+
 Frames: poses are ``T_scene_gripper`` (the planner's ``T_object_gripper`` on a scene), metres.
 """
 
@@ -47,9 +54,11 @@ from ..fitting.engine import score_fit
 from ..gripper.model import Gripper
 from ..object.surface import ObjectSurface
 from ..result import FitResult
+from .finger_depth import FingerDepth
 from .loading import Scene
 
-__all__ = ["NOISE_MARGIN", "SETTLE_STEPS", "STEP_MARGIN", "Settled", "Settler", "contact_allowance"]
+__all__ = ["BOUND_STEPS", "NOISE_MARGIN", "SETTLE_STEPS", "STEP_MARGIN", "Settled", "Settler",
+           "contact_allowance"]
 
 NOISE_MARGIN = 1.5
 """How many noise widths (``Scene.noise``) the contact allowance takes off the collision
@@ -61,6 +70,9 @@ SETTLE_STEPS = 8
 STEP_MARGIN = 3e-4
 """Metres a move goes beyond the excess depth it removes (the depth estimate on a noisy surface
 does not fall one for one with the move)."""
+
+BOUND_STEPS = 4
+"""Moves tried at most to bring a settled grasp's fingers within their local depth bound."""
 
 _MIN_MOVE = 2e-4  # m, the smallest finger opening worth making
 
@@ -80,11 +92,15 @@ class Settled(NamedTuple):
         settled: True when the grasp is within the contact allowance, every contact surface
             touching; False for a collision-free grasp that could not be settled; None for a
             grasp that collides.
+        within_bound: for a settled grasp, True when its fingers' local depth bound
+            (:class:`~isf.scene.finger_depth.FingerDepth`) is within the collision tolerance
+            (or the scene has no local scatter), else False; None when not settled.
     """
 
     result: FitResult
     report: CollisionReport
     settled: bool | None
+    within_bound: bool | None = None
 
 
 class Settler:
@@ -100,12 +116,19 @@ class Settler:
 
     Attributes:
         allowance: the contact allowance, metres (:func:`contact_allowance`).
+        tolerance: the plan's collision tolerance, metres: the largest local depth bound
+            (:mod:`isf.scene.finger_depth`) a settled grasp keeps.
+        finger_depth: the fingers' local depth bound on the scene's surface, or None for a
+            scene without local scatter (``Scene.scatter``).
     """
 
     def __init__(self, gripper: Gripper, obj: ObjectSurface, scene: Scene, config: FitConfig, *,
                  obstacles: Sequence[Plane] = (), tolerance: float = 0.002):
         self.gripper, self.obj, self.config = gripper, obj, config
         self.allowance = contact_allowance(scene, tolerance)
+        self.tolerance = float(tolerance)
+        self.finger_depth = None if scene.scatter is None else FingerDepth(
+            gripper, scene.surface.points, scene.surface.normals, scene.scatter, NOISE_MARGIN)
         self.checker = CollisionChecker(gripper, obj, obstacles=obstacles,
                                         tolerance=self.allowance, hidden=scene.unseen)
         self._contact_links = frozenset(gripper.contact_links)
@@ -130,13 +153,65 @@ class Settler:
             moved = True
         else:
             return failed
-        if not moved:
-            return Settled(result, check, True)
-        scored = score_fit(self.gripper, self.obj, T, q, self.config, result.status,
+        if moved:
+            result = score_fit(self.gripper, self.obj, T, q, self.config, result.status,
+                               result.history, result.time)
+            if not result.all_surfaces_in_contact:
+                return failed
+        if self.finger_depth is None:
+            return Settled(result, check, True, True)
+        eased = self._ease(T, q, check)
+        if eased is None:
+            return Settled(result, check, True, False)
+        T_eased, q_eased, check_eased = eased
+        if T_eased is T and q_eased is q:
+            return Settled(result, check, True, True)
+        scored = score_fit(self.gripper, self.obj, T_eased, q_eased, self.config, result.status,
                            result.history, result.time)
         if not scored.all_surfaces_in_contact:
-            return failed
-        return Settled(scored, check, True)
+            return Settled(result, check, True, False)
+        return Settled(scored, check_eased, True, True)
+
+    def _ease(self, T: np.ndarray, q: np.ndarray, check: CollisionReport
+              ) -> tuple[np.ndarray, np.ndarray, CollisionReport] | None:
+        """A settled state moved until its fingers' local depth bound is within the tolerance
+        (the given state when it already is), with its check; None when
+        :data:`BOUND_STEPS` moves do not get there while staying within the allowance.
+
+        Each move goes :data:`STEP_MARGIN` beyond the largest excess of a finger's bound over
+        the tolerance: the hand against the contact normal of the one finger beyond it, the
+        fingers opening, or the hand backing off along its approach, whichever leaves the
+        smallest bound."""
+        for step in range(BOUND_STEPS + 1):
+            bounds = self.finger_depth.by_finger(T, q)
+            excess = max(bounds.values(), default=-np.inf) - self.tolerance
+            if excess <= 0:
+                return T, q, check
+            if step == BOUND_STEPS:
+                return None
+            move = excess + STEP_MARGIN
+            over = [k for k, link in enumerate(self.gripper.contact_links)
+                    if bounds.get(link, -np.inf) > self.tolerance]
+            candidates = [(self._backed_off(T, move), q)]
+            opened = self._opened(q, move)
+            if opened is not None:
+                candidates.append((T, opened))
+            if len(over) == 1:
+                _, normals = self.gripper.contact_points(q)
+                n = normals[self.gripper.point_link == over[0]].mean(axis=0)
+                candidates.append((_translated(T, -move * (T[:3, :3] @ (n / np.linalg.norm(n)))), q))
+            best = None
+            for T_c, q_c in candidates:
+                report = self.checker.check(T_c, q_c)
+                if not report.collision_free:
+                    continue
+                bound = self.finger_depth.bound(T_c, q_c)
+                if best is None or bound < best[0]:
+                    best = (bound, T_c, q_c, report)
+            if best is None or best[0] >= excess + self.tolerance:
+                return None
+            _, T, q, check = best
+        return None
 
     def _step(self, T: np.ndarray, q: np.ndarray, check: CollisionReport, pressed: set[str]
               ) -> tuple[np.ndarray, np.ndarray, CollisionReport]:
