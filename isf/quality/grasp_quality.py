@@ -24,7 +24,7 @@ import numpy as np
 
 from ..gripper.model import Gripper
 from ..object.surface import ObjectSurface
-from .contacts import ContactModelConfig, Contacts, grasp_contacts, grasps_contacts
+from .contacts import ContactModelConfig, Contacts, grasps_contacts
 from .gravity import GRAVITY, SIX_DIRECTIONS, _LoadBalance, gravity_loads, resists_loads
 from .wrenches import CONE_EDGES, WrenchSpace, _cross, contact_wrenches, positively_spans
 
@@ -297,8 +297,7 @@ class GraspQuality:
     @property
     def gravity_margin(self) -> dict[str, float]:
         """:attr:`gravity_load` over the object's weight (``mass * g``)."""
-        weight = self._config.mass * GRAVITY
-        return {n: v / weight for n, v in self.gravity_load.items()}
+        return {n: v / self._weight for n, v in self.gravity_load.items()}
 
     @property
     def min_margin(self) -> float:
@@ -332,10 +331,8 @@ def grasp_quality(gripper: Gripper, obj: ObjectSurface, T_object_gripper: np.nda
     object frame) and joints ``q`` (n_joints,) on ``obj``; ``properties`` default
     :func:`isf.quality.grasp_quality.object_properties` of ``obj`` (pass them when scoring many
     grasps of one object)."""
-    config = QualityConfig() if config is None else config
-    properties = object_properties(obj) if properties is None else properties
-    contacts = grasp_contacts(gripper, obj, T_object_gripper, q, config.contact_model)
-    return contacts_quality(contacts, properties, config)
+    return grasps_quality(gripper, obj, np.asarray(T_object_gripper, dtype=float)[None],
+                          np.asarray(q, dtype=float)[None], config, properties)[0]
 
 
 def grasps_quality(gripper: Gripper, obj: ObjectSurface, T_object_gripper: np.ndarray,

@@ -182,8 +182,8 @@ class Settler:
         the tolerance: the hand against the contact normal of the one finger beyond it, the
         fingers opening, or the hand backing off along its approach, whichever leaves the
         smallest bound."""
+        bounds = self.finger_depth.by_finger(T, q)
         for step in range(BOUND_STEPS + 1):
-            bounds = self.finger_depth.by_finger(T, q)
             excess = max(bounds.values(), default=-np.inf) - self.tolerance
             if excess <= 0:
                 return T, q, check
@@ -197,20 +197,19 @@ class Settler:
             if opened is not None:
                 candidates.append((T, opened))
             if len(over) == 1:
-                _, normals = self.gripper.contact_points(q)
-                n = normals[self.gripper.point_link == over[0]].mean(axis=0)
-                candidates.append((_translated(T, -move * (T[:3, :3] @ (n / np.linalg.norm(n)))), q))
+                candidates.append((self._shifted_off(T, q, over[0], move), q))
             best = None
             for T_c, q_c in candidates:
                 report = self.checker.check(T_c, q_c)
                 if not report.collision_free:
                     continue
-                bound = self.finger_depth.bound(T_c, q_c)
+                by_finger = self.finger_depth.by_finger(T_c, q_c)
+                bound = max(by_finger.values(), default=-np.inf)
                 if best is None or bound < best[0]:
-                    best = (bound, T_c, q_c, report)
+                    best = (bound, T_c, q_c, report, by_finger)
             if best is None or best[0] >= excess + self.tolerance:
                 return None
-            _, T, q, check = best
+            _, T, q, check, bounds = best
         return None
 
     def _step(self, T: np.ndarray, q: np.ndarray, check: CollisionReport, pressed: set[str]
@@ -241,14 +240,19 @@ class Settler:
                    if link in check.colliding_links]
         others = set(check.colliding_links).difference(self.gripper.contact_links)
         if fingers and not others and len(pressed) == 1:  # one finger presses: shift it out
-            _, normals = self.gripper.contact_points(q)
-            n = normals[self.gripper.point_link == fingers[0]].mean(axis=0)
-            return _translated(T, -move * (T[:3, :3] @ (n / np.linalg.norm(n)))), q
+            return self._shifted_off(T, q, fingers[0], move), q
         if not others:
             opened = self._opened(q, move)
             if opened is not None:
                 return T, opened
         return self._backed_off(T, move), q
+
+    def _shifted_off(self, T: np.ndarray, q: np.ndarray, finger: int, move: float) -> np.ndarray:
+        """``T`` moved ``move`` metres against the mean contact normal of finger ``finger`` (an
+        index of ``Gripper.contact_links``) at joints ``q``: that finger out of the surface."""
+        _, normals = self.gripper.contact_points(q)
+        n = normals[self.gripper.point_link == finger].mean(axis=0)
+        return _translated(T, -move * (T[:3, :3] @ (n / np.linalg.norm(n))))
 
     def _backed_off(self, T: np.ndarray, move: float) -> np.ndarray:
         """``T`` moved ``move`` metres back along the gripper's approach direction."""
