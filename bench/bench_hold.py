@@ -2,11 +2,12 @@
 
 For each gripper and YCB object (real size, ``asset:ycb:NAME``), one ``isf.plan`` of 60 samples
 (regret sampler, seed 0) per ranking, and the top 5 grasps simulated by
-:func:`isf.simulation.validate_grasp` (friction 0.5, 0.3 kg, 20 N per finger joint: the defaults of
-``isf validate``; docs/validate.md). A grasp *holds* when the object stays within 10 mm and
-0.2 rad of its closed pose with gravity along each of +-x, +-y, +-z. Reported per gripper and
-ranking: top-1 = % of objects whose best grasp holds in all six directions; top-5 = % of the
-top-5 grasps (over all objects) that hold in all six; and the outcomes by kind.
+:func:`isf.simulation.validate_grasp` (friction 0.5, 0.3 kg, 20 N from each contact surface: the
+defaults of ``isf validate``; ``--finger-force`` sets another; docs/validate.md). A grasp
+*holds* when the object stays within 10 mm and 0.2 rad of its closed pose with gravity along
+each of +-x, +-y, +-z. Reported per gripper and ranking: top-1 = % of objects whose best
+grasp holds in all six directions; top-5 = % of the top-5 grasps (over all objects) that hold
+in all six; and the outcomes by kind.
 
 Rankings: ``fit`` (the paper's: valid first, then the fitting error) and, when ``isf.plan``
 has a ``rank`` parameter, ``quality`` (its stability-aware default). When
@@ -21,8 +22,8 @@ bench/bench_hands.py tags it, which is not what ``isf tag`` suggests: docs/valid
 no ``<isf:closing>`` tags, so each joint closes the way its
 contact surfaces' outward normals point, ``Gripper.suggested_closing``), ``allegro-suggested``
 (the same vendor hand tagged as a user would tag it: ``isf tag URDF --palm-link palm_link``,
-every suggestion taken: fingertip pads facing the other fingertips, approach and tool-centre
-point; closing as for ``allegro-right``), and
+every suggestion taken: fingertip pads facing the other fingertips, approach, tool-centre
+point and ``<isf:closing>`` signs: the flexion joints close, the abduction joints hold), and
 ``paper-parallel-scaled``: ``paper-parallel`` (2.3 cm opening, which no YCB object fits at real
 size) on each object scaled uniformly so that its smallest principal width is
 ``SCALED_FILL`` of the opening (the same 0.3 kg: only the geometry is scaled).
@@ -248,6 +249,9 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=SEED, help="seed of every plan")
     parser.add_argument("--com-bias", type=float, default=None, metavar="BETA",
                         help="plan with CentreOfMassRegret(bias=BETA) instead of the regret sampler")
+    parser.add_argument("--finger-force", type=float, default=SimulationSettings().finger_force,
+                        metavar="N", help="normal force each contact surface can press with, N "
+                        "(default: isf validate's)")
     parser.set_defaults(deadline=0.0)
     args = parser.parse_args()
     PLAN_OPTIONS["seed"] = args.seed
@@ -257,7 +261,7 @@ def main() -> None:
     objects = args.objects.split(",")[:2] if args.quick else args.objects.split(",")
     started, header = time.perf_counter(), _common.machine_description()
     deadline = _common.Deadline(args.deadline)
-    settings = SimulationSettings(friction=FRICTION)
+    settings = SimulationSettings(friction=FRICTION, finger_force=args.finger_force)
     plan_antipodal = baseline()
     rows: list[dict] = ([r for f in args.from_raw.split(",") for r in json.loads(Path(f).read_text())]
                         if args.from_raw else [])

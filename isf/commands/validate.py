@@ -24,8 +24,9 @@ def add_parser(subparsers) -> None:
                    help="Coulomb friction coefficient of the contacts (default 0.5)")
     p.add_argument("--mass", type=float, default=0.3, metavar="KG",
                    help="object mass, kg, uniform density (default 0.3)")
-    p.add_argument("--finger-force", type=float, default=10.0, metavar="N",
-                   help="force bound of each finger at its contact surface, N (default 10)")
+    p.add_argument("--finger-force", type=float, default=20.0, metavar="N",
+                   help="normal force each contact surface can press with, N: a parallel "
+                        "gripper squeezes with it from each jaw (default 20)")
     p.add_argument("--gripper", "-g", default=None,
                    help="bundled gripper name or URDF path (default: the plan's)")
     p.add_argument("--object", "-o", default=None,

@@ -34,6 +34,13 @@ from .chain import KinematicChain
 __all__ = ["ContactKinematics", "ContactSurface", "Gripper", "LinkGeometry", "LinkKinematics"]
 
 
+CLOSING_HOLD_COSINE = 0.2
+"""A joint whose contact points move this close to across their outward normals (the mean
+cosine between their motion and their normals, weighted by speed, below it: more than 78
+degrees off) holds its value while the fingers close: :meth:`Gripper.suggested_closing` gives it
+the sign 0 (an abduction joint that swings a fingertip sideways)."""
+
+
 @dataclass(frozen=True, eq=False)
 class ContactSurface:
     """A tagged contact surface, sampled as points with outward normals.
@@ -132,9 +139,10 @@ class Gripper:
         mimic: the mimic joints, ``{follower: Mimic(leader, multiplier, offset)}`` (the
             ``Mimic`` records the URDF reader makes), ``q_follower = multiplier * q_leader +
             offset``.
-        closing: the sign (+1 or -1) of the motion of each actuated joint that closes its
-            finger (``<isf:closing joint sign>``), by joint name; joints not declared are
-            missing (:meth:`suggested_closing` derives them from the contact normals).
+        closing: the sign of the motion of each actuated joint that closes its finger
+            (``<isf:closing joint sign>``), by joint name: +1 or -1, or 0 for a joint that holds
+            its value while the others close; joints not declared are missing
+            (:meth:`suggested_closing` derives them from the contact normals).
     """
 
     name: str
@@ -253,13 +261,16 @@ class Gripper:
 
         A finger closes along its contact surface's outward normal: the sign is that of
         ``sum_i n_i . dp_i/dq_j`` over the contact points ``p_i`` (normals ``n_i``, gripper frame)
-        at ``q`` (default :attr:`q_initial`). Joints that move no contact point are left out.
+        at ``q`` (default :attr:`q_initial`), and 0 (the joint holds) when that sum over
+        ``sum_i |dp_i/dq_j|`` is below ``CLOSING_HOLD_COSINE`` (0.2) in magnitude. Joints that
+        move no contact point are left out.
         """
         kin = self.contact_kinematics(self.q_initial if q is None else np.asarray(q, dtype=float))
         push = np.einsum("mk,mkj->j", kin.normals, kin.J_points)
-        scale = np.abs(kin.J_points).sum(axis=(0, 1))
-        return {name: float(np.sign(push[j])) for j, name in enumerate(self.joint_names)
-                if abs(push[j]) > 1e-6 * max(float(scale[j]), 1e-12)}
+        speed = np.linalg.norm(kin.J_points, axis=1).sum(axis=0)
+        return {name: float(np.sign(push[j])) if abs(push[j]) >= CLOSING_HOLD_COSINE * speed[j]
+                else 0.0
+                for j, name in enumerate(self.joint_names) if speed[j] > 1e-9}
 
     def joint_state(self, q: np.ndarray) -> dict[str, float]:
         """Every moving joint's value by URDF name at ``q`` (n_joints,): the actuated joints

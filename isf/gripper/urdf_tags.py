@@ -181,7 +181,8 @@ class InitialTag:
 
 @dataclass(frozen=True)
 class ClosingTag:
-    """An ``<isf:closing>`` tag: the sign (+1 or -1) of the joint's motion that closes its finger."""
+    """An ``<isf:closing>`` tag: the sign (+1 or -1) of the joint's motion that closes its finger,
+    or 0 for a joint that holds its value while the fingers close."""
 
     joint: str
     sign: float
@@ -514,8 +515,8 @@ def _closing(rd: _Reader, elem: ET.Element) -> ClosingTag | None:
     where = f"<isf:closing joint={joint!r}>"
     _check_attrs(rd, elem, _CLOSING_ATTRS, where)
     sign = rd.number(elem.get("sign"), f"{where} sign")
-    if not joint or sign not in (1.0, -1.0):
-        rd.problems.append(f"{where} needs a joint and a sign attribute of 1 or -1")
+    if not joint or sign not in (1.0, -1.0, 0.0):
+        rd.problems.append(f"{where} needs a joint and a sign attribute of 1, -1 or 0 (holds)")
         return None
     return ClosingTag(joint, sign)
 

@@ -211,7 +211,7 @@ def _gripper_element(palm_link: str | None, approach, tcp=None) -> str | None:
 
 def _closing_elements(closing: Mapping[str, float]) -> list[str]:
     """``<isf:closing joint sign>`` lines, one per joint."""
-    return [_element("closing", [("joint", joint), ("sign", "1" if sign > 0 else "-1")])
+    return [_element("closing", [("joint", joint), ("sign", f"{int(np.sign(sign))}")])
             for joint, sign in closing.items()]
 
 

@@ -4,7 +4,8 @@
    geometry) above ``penetration_limit`` makes the grasp ``penetrating``; it is not simulated.
 2. **Closing** (gravity off). The fingers start ``open_*`` away from the planned joints, against
    their closing direction (``Gripper.closing``, or
-   ``Gripper.suggested_closing`` for joints not declared), and position actuators with
+   ``Gripper.suggested_closing`` for joints not declared; a joint of sign 0 stays at its
+   planned value), and position actuators with
    bounded force follow targets moving at constant speed, over ``CLOSING_RAMP`` of
    ``close_time``, to ``squeeze_*`` past the planned joints, and hold them there. The
    object is ``ejected`` if it moved more than ``eject_distance`` or touches no gripper geom.
@@ -122,7 +123,8 @@ def _contacts(world: GraspWorld, data) -> np.ndarray:
 
 
 def closing_signs(gripper: Gripper, q: np.ndarray) -> np.ndarray:
-    """+1 or -1 per actuated joint: the sign of the joint motion that closes the finger."""
+    """+1 or -1 per actuated joint, the sign of the joint motion that closes the finger, or 0
+    for a joint that holds its planned value (n_joints,)."""
     declared = getattr(gripper, "closing", None) or {}
     suggested = None
     signs = np.ones(gripper.n_joints)

@@ -16,10 +16,11 @@ class SimulationSettings:
     Attributes:
         friction: Coulomb friction coefficient of every gripper-object contact.
         mass: object mass, kg (spread uniformly over the mesh's volume).
-        finger_force: force bound of each finger actuator at its contact surface, N: a
-            prismatic joint's force bound, and a revolute joint's torque bound divided by the
-            mean distance of the contact points it moves from its axis (the URDF's ``effort``
-            is not used: hand-made URDFs rarely state a real one).
+        finger_force: the normal force each contact surface can press with, N: each
+            actuator's bound is this times the speed of every contact surface the joint moves
+            (1 per surface for a prismatic jaw; a revolute joint's lever arm), so both jaws of
+            a parallel gripper whose second jaw is a ``<mimic>`` squeeze with it (the URDF's
+            ``effort`` is not used: hand-made URDFs rarely state a real one).
         open_prismatic: how far a prismatic finger starts open of its planned value, m.
         open_revolute: how far a revolute finger starts open of its planned value, rad.
         squeeze_prismatic: how far past the planned value the actuator's target lies, m.

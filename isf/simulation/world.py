@@ -134,12 +134,27 @@ def physics_spec(settings: SimulationSettings):
 
 
 def force_bounds(gripper: Gripper, q: np.ndarray, finger_force: float) -> np.ndarray:
-    """Each actuated joint's force (N) or torque (N m) bound, (n_joints,): ``finger_force`` at
-    the contact points the joint moves (a revolute joint's lever is their mean distance from its
-    axis, from the contact Jacobians at ``q``)."""
+    """Each actuated joint's force (N) or torque (N m) bound, (n_joints,), such that every
+    contact surface the joint moves can press with ``finger_force`` newtons.
+
+    By virtual work a joint's generalised force is the sum, over the contact surfaces it moves,
+    of their normal force times their speed per unit of joint motion (metres per metre of a
+    prismatic joint, the lever arm in metres per radian of a revolute one; the mean over the
+    surface's moving points, from the contact Jacobians at ``q``). A joint whose ``<mimic>``
+    followers move the opposite jaw of a parallel gripper therefore gets twice ``finger_force``:
+    each jaw presses with ``finger_force``, as the URDF's per-joint ``effort`` states for both.
+    """
     speed = np.linalg.norm(gripper.contact_kinematics(q).J_points, axis=1)  # (M, n_joints)
-    lever = np.array([float(s[s > 1e-9].mean()) if np.any(s > 1e-9) else 0.05 for s in speed.T])
-    return np.where(gripper.revolute, finger_force * lever, finger_force)
+    bounds = np.zeros(gripper.n_joints)
+    for surface in range(len(gripper.surfaces)):
+        on_surface = speed[gripper.point_surface == surface]  # (M_s, n_joints)
+        moving = on_surface > 1e-9
+        count = moving.sum(axis=0)
+        mean = np.where(count > 0, (on_surface * moving).sum(axis=0) / np.maximum(count, 1), 0.0)
+        bounds += finger_force * mean
+    unmoved = bounds <= 0.0  # a joint that moves no contact point: a nominal 5 cm lever
+    bounds[unmoved] = finger_force * np.where(gripper.revolute[unmoved], 0.05, 1.0)
+    return bounds
 
 
 def build_world(gripper: Gripper, body: ObjectBody, T_object_gripper: np.ndarray,
