@@ -19,8 +19,14 @@ valid@10 is possible.
 Needs the YCB meshes (``../shared/data/ycb`` or ``$ISF_YCB_DIR``) and the plugin installed
 (``pip install -e plugins/isf-sampler-learned``).
 
+``--tuning`` plans the objects the sampler's parameters were chosen on instead
+(:data:`TUNING_OBJECTS`, neither training nor test objects), and ``--param KEY=VALUE`` gives
+the learned sampler a parameter (a JSON value), so that a choice of parameters can be
+compared there without touching the test objects.
+
 Run from the repository root:
     python bench/bench_learned.py [--quick] [--seeds 3] [--gripper NAME] [--objects N] [--out FILE]
+        [--tuning] [--param KEY=VALUE ...]
 """
 
 from __future__ import annotations
@@ -28,6 +34,7 @@ from __future__ import annotations
 import _common
 
 import argparse
+import json
 import statistics
 import sys
 import tempfile
@@ -48,6 +55,7 @@ GRIPPERS = ("paper-parallel", "flat-parallel", "three-finger", "franka-hand")
 TEST_OBJECTS = ("asset:ycb:FoamBrick", "asset:ycb:GelatinBox", "asset:ycb:PottedMeatCan",
                 "asset:ycb:Scissors", "asset:ycb:TomatoSoupCan", "asset:dragon",
                 "asset:random-400", "asset:random-401")
+TUNING_OBJECTS = tuple(f"asset:random-{k}" for k in range(410, 416))
 QUICK_OBJECTS = 3
 SAMPLES = 60
 FIRST = 10
@@ -98,8 +106,9 @@ class Run:
     sampler_share: float
 
 
-def run_once(gripper: isf.Gripper, obj: isf.ObjectSurface, sampler_cls: type, seed: int) -> Run:
-    sampler = timed(sampler_cls)()
+def run_once(gripper: isf.Gripper, obj: isf.ObjectSurface, sampler_cls: type, seed: int,
+             params: dict) -> Run:
+    sampler = timed(sampler_cls)(**params)
     result = isf.plan(gripper, obj, samples=SAMPLES, sampler=sampler, seed=seed)
     ordered = sorted(result.grasps, key=lambda g: g.sample_index)
     valid = [g.valid for g in ordered]
@@ -124,7 +133,7 @@ def load(name: str, folder: Path) -> isf.Gripper:
     if model is None:
         raise SystemExit(f"no bundled model for {name}: run "
                          "plugins/isf-sampler-learned/scripts/train_bundled.py")
-    seen = set(TEST_OBJECTS) & set(model.info.get("objects", ()))
+    seen = set(TEST_OBJECTS + TUNING_OBJECTS) & set(model.info.get("objects", ()))
     if seen:
         raise SystemExit(f"the {name} model was trained on test objects {sorted(seen)}")
     return gripper
@@ -179,9 +188,20 @@ def main() -> None:
                         help=f"one seed, the first {QUICK_OBJECTS} objects")
     parser.add_argument("--objects", type=int, help="the first N test objects only")
     parser.add_argument("--out", help="also write the markdown report to this file")
+    parser.add_argument("--tuning", action="store_true",
+                        help="plan the tuning objects random-410 .. random-415 instead")
+    parser.add_argument("--param", action="append", default=[], metavar="KEY=VALUE",
+                        help="a parameter of the learned sampler, VALUE in JSON (repeatable)")
     args = parser.parse_args()
     seeds = range(1 if args.quick else args.seeds)
-    objects = TEST_OBJECTS[:QUICK_OBJECTS if args.quick else args.objects]
+    pool = TUNING_OBJECTS if args.tuning else TEST_OBJECTS
+    objects = pool[:QUICK_OBJECTS if args.quick else args.objects]
+    try:
+        params = {key: json.loads(value) for key, _, value in
+                  (item.partition("=") for item in args.param)}
+    except json.JSONDecodeError as err:
+        raise SystemExit(f"--param needs KEY=VALUE with a JSON value: {err}") from None
+
     warnings.simplefilter("ignore")  # objects larger than a jaw's opening are expected
     started = time.perf_counter()
     header = ["gripper", "object", "sampler", "valid@10", "first valid", "valid@60",
@@ -195,8 +215,10 @@ def main() -> None:
             for spec in objects:
                 obj = isf.open_object(spec)
                 medians = {}
-                for label, cls in (("regret", RegretSampler), ("learned", LearnedSampler)):
-                    medians[label] = m = median_run([run_once(gripper, obj, cls, s) for s in seeds])
+                for label, cls, kwargs in (("regret", RegretSampler, {}),
+                                           ("learned", LearnedSampler, params)):
+                    medians[label] = m = median_run([run_once(gripper, obj, cls, s, kwargs)
+                                                     for s in seeds])
                     rows.append([name, spec.removeprefix("asset:"), label, _common.fmt(m.valid_first),
                                  _common.fmt(m.first_valid), _common.fmt(m.valid),
                                  _common.fmt(m.error_mm), f"{100 * m.sampler_share:.1f} %"])

@@ -62,6 +62,9 @@ def _train(args: argparse.Namespace) -> int:
         print(f"held-out accuracy: {held.accuracy:.3f} on {held.examples} starts of unseen "
               f"objects (majority label: {held.base_rate:.3f}); valid among the model's top "
               f"10 %: {held.top_decile_valid:.3f} (all: {held.valid_rate:.3f})")
+        auc = "n/a" if held.object_auc is None else f"{held.object_auc:.3f}"
+        print(f"within each held-out object (mean): AUC {auc}, valid among its top 10 %: "
+              f"{held.object_top_decile_valid:.3f} (all: {held.object_valid_rate:.3f})")
     path = model.save(args.out)
     print(f"wrote {path} (gripper {gripper.name}, sha256 {model.gripper_sha256[:12]}...)")
     return 0

@@ -232,10 +232,13 @@ def _tube_range(points: np.ndarray, centres: np.ndarray, directions: np.ndarray,
         cb, db = c[block], d[block]
         along = points @ db.T - np.einsum("mk,mk->m", cb, db)[None, :]  # (N, m)
         distance2 = p2 - 2.0 * (points @ cb.T) + np.einsum("mk,mk->m", cb, cb)[None, :]
-        inside = distance2 - along**2 <= radius**2
-        any_inside = inside.any(axis=0)
-        low[block] = np.where(any_inside, np.where(inside, along, np.inf).min(axis=0), 0.0)
-        high[block] = np.where(any_inside, np.where(inside, along, -np.inf).max(axis=0), 0.0)
+        distance2 -= along**2  # squared distance from the line
+        outside = distance2 > radius**2
+        any_inside = ~outside.all(axis=0)
+        along[outside] = np.inf  # in place: the blocks are the largest arrays of a plan's start
+        low[block] = np.where(any_inside, along.min(axis=0), 0.0)
+        along[outside] = -np.inf
+        high[block] = np.where(any_inside, along.max(axis=0), 0.0)
     line = line.reshape(-1)
     flip = sign < 0  # the opposite of the computed direction: the range mirrored
     return np.where(flip, -high[line], low[line]), np.where(flip, -low[line], high[line])

@@ -1,5 +1,5 @@
-"""The ``learned`` sampler: the regret bandit's arms, steered by a model trained on earlier ISF
-outcomes.
+"""The ``learned`` sampler: the regret bandit's arms, chosen by a validity posterior whose prior
+is a model trained on earlier ISF outcomes.
 
 The arms are the regret sampler's (:class:`isf.samplers.regret.RegretSampler`): k-means
 cluster centres of the object's points, each approached against its cluster's mean inward
@@ -10,19 +10,23 @@ approach axis facing the surface; uniformly random ones for a gripper without an
 
     score = logit P(valid) - error_weight * (predicted log10 error - median) / spread
 
-and an arm's *prior* is the mean of its ``top`` best scores. Each
+and an arm's *prior* ``pi`` is the mean ``P(valid)`` of its ``top`` best-scored spins. Each
 :meth:`~LearnedSampler.propose`:
 
-- picks the arm as the regret bandit does (least average regret, paper Alg. 3), except that
-  among the arms not yet tried it takes the one with the best prior first;
-- draws the arm's orientation with probability proportional to ``exp(score / exploration)``
+- picks the arm by Thompson sampling of a Beta posterior of its validity,
+  ``Beta(n0 pi + valid, n0 (1 - pi) + invalid)`` with ``n0 = prior_strength`` (proposals
+  still in flight count as invalid), less ``arm_error_weight`` times the arm's mean fitting
+  error of its valid grasps relative to that of all valid grasps so far: the model decides
+  the first samples, the outcomes take over as they arrive, and the exploration decays as
+  the posteriors narrow (an arm the model ranks low is still drawn now and then);
+- draws the arm's orientation with probability proportional to
+  ``exp((score + spin_evidence * (valid - invalid outcomes of that spin)) / exploration)``
   (Gumbel-max on the plan's ``rng``), turned by a uniform angle within its spin's share of
   the circle so that repeated draws differ.
 
-:meth:`~LearnedSampler.observe` updates the arm's average regret exactly as the regret
-sampler does. The model thus chooses where the first samples go and which way the jaws
-close, while the choice of the arm to exploit rests on the outcomes: a model that ranks
-badly costs the ``model_arms`` exploratory samples and the spins it prefers, not the plan.
+:meth:`~LearnedSampler.observe` counts each outcome's validity (collision-free and touching)
+for its arm and spin and updates the regret bandit's table too. Without a model the sampler
+is the regret sampler with evenly spread spins.
 """
 
 from __future__ import annotations
@@ -61,6 +65,7 @@ __all__ = ["LearnedSampler", "NoModelWarning"]
 logger = logging.getLogger(__name__)
 _CLIP = 1e-4  # probabilities are kept within [_CLIP, 1 - _CLIP] before the logit
 _POOL_SPINS = 6  # orientations per pool point when choosing the model's arms
+_BETA_FLOOR = 1e-3  # least Beta parameter (a prior_strength of 0 leaves untried arms at 0)
 
 
 class NoModelWarning(UserWarning):
@@ -88,6 +93,10 @@ class LearnedSampler(Sampler):
         model_arms: arms added at the model's best surface points, >= 0.
         pool: random surface points scored to place those arms, >= 1.
         top: best spins averaged into an arm's prior, >= 1.
+        prior_strength: how many outcomes the model's prior of an arm is worth, >= 0.
+        spin_evidence: logit units a spin's score gains per valid outcome there (and loses
+            per invalid one), >= 0.
+        arm_error_weight: weight of an arm's relative fitting error in its choice, >= 0.
         n_clusters: k-means clusters (the regret sampler's ``n_clusters``; None: its default).
         gamma: collision penalty factor of the regret update (the regret sampler's), >= 0.
 
@@ -98,21 +107,27 @@ class LearnedSampler(Sampler):
         R: orientations per arm, ``R_object_gripper``, shape (A, spins, 3, 3).
         p_valid: the model's probability of a valid grasp per arm and spin, shape (A, spins).
         score: score per arm and spin, shape (A, spins).
-        prior: prior per arm, shape (A,).
+        prior_valid: the model's prior validity per arm, shape (A,).
         used: whether each arm's spin was proposed, shape (A, spins) (a gripper without an
             approach draws each of its arm's random rotations once before any twice).
+        hits: valid outcomes per arm, shape (A,).
+        valid_error: summed fitting error of each arm's valid outcomes, metres, shape (A,).
+        evidence: valid minus invalid outcomes per arm and spin, shape (A, spins).
     """
 
     name = "learned"
-    description = "regret's arms, ordered and oriented by a model trained on earlier ISF outcomes"
+    description = "regret's arms and spins, chosen by validity posteriors with a trained model as prior"
 
     model: str | os.PathLike = "auto"
     spins: int = 12
     exploration: float = 0.5
     error_weight: float = 0.5
-    model_arms: int = 2
-    pool: int = 24
+    model_arms: int = 4
+    pool: int = 48
     top: int = 3
+    prior_strength: float = 2.0
+    spin_evidence: float = 1.0
+    arm_error_weight: float = 0.5
     n_clusters: int | None = None
     gamma: float = 0.2
 
@@ -122,8 +137,11 @@ class LearnedSampler(Sampler):
     R: np.ndarray = field(init=False, repr=False, default=None)
     p_valid: np.ndarray = field(init=False, repr=False, default=None)
     score: np.ndarray = field(init=False, repr=False, default=None)
-    prior: np.ndarray = field(init=False, repr=False, default=None)
+    prior_valid: np.ndarray = field(init=False, repr=False, default=None)
     used: np.ndarray = field(init=False, repr=False, default=None)
+    hits: np.ndarray = field(init=False, repr=False, default=None)
+    valid_error: np.ndarray = field(init=False, repr=False, default=None)
+    evidence: np.ndarray = field(init=False, repr=False, default=None)
     _axes: GripperAxes | None = field(init=False, repr=False, default=None)
 
     def __post_init__(self) -> None:
@@ -131,7 +149,8 @@ class LearnedSampler(Sampler):
             value = getattr(self, key)
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
                 raise ConfigError(f"learned: {key} must be an integer >= {low}, got {value!r}")
-        for key in ("exploration", "error_weight"):
+        for key in ("exploration", "error_weight", "prior_strength", "spin_evidence",
+                    "arm_error_weight"):
             value = getattr(self, key)
             number = isinstance(value, (int, float, np.number)) and not isinstance(value, bool)
             if not number or not np.isfinite(value) or value < 0:
@@ -143,7 +162,7 @@ class LearnedSampler(Sampler):
 
     def reset(self, obj: ObjectSurface, gripper: Gripper, rng: np.random.Generator) -> None:
         """Cluster the object, place the model's arms, score every arm's spins and zero the
-        regret table.
+        outcome counts.
 
         Raises:
             ModelFileError: ``model`` names a file that is unreadable or made for another
@@ -171,8 +190,12 @@ class LearnedSampler(Sampler):
             self.p_valid = p_valid.reshape(bandit.k, self.spins)
             self.score = score.reshape(bandit.k, self.spins)
         top = min(self.top, self.spins)
-        self.prior = np.sort(self.score, axis=1)[:, -top:].mean(axis=1)
+        best = np.argsort(self.score, axis=1)[:, -top:]
+        self.prior_valid = np.take_along_axis(self.p_valid, best, axis=1).mean(axis=1)
         self.used = np.zeros((bandit.k, self.spins), dtype=bool)
+        self.hits = np.zeros(bandit.k)
+        self.valid_error = np.zeros(bandit.k)
+        self.evidence = np.zeros((bandit.k, self.spins))
 
     def _resolve_model(self, gripper: Gripper) -> LearnedModel | None:
         """The model of ``self.model`` for ``gripper``, or None."""
@@ -236,15 +259,24 @@ class LearnedSampler(Sampler):
         bandit.trials = np.zeros(bandit.k, dtype=int)
         bandit.pending = np.zeros(bandit.k, dtype=int)
 
-    def choose_arm(self) -> int:
-        """The arm of the next proposal: among untried arms with nothing in flight the one with
-        the best prior, else the regret bandit's choice."""
+    def choose_arm(self, rng: np.random.Generator) -> int:
+        """The arm of the next proposal: a Thompson draw of each arm's validity posterior less
+        its relative fitting error (module docstring); without a model, the regret bandit's
+        choice."""
         self._require_reset()
         bandit = self.bandit
-        fresh = np.flatnonzero((bandit.trials == 0) & (bandit.pending == 0))
-        if self.loaded is not None and len(fresh):
-            return int(fresh[np.argmax(self.prior[fresh])])
-        return bandit.best_cluster()
+        if self.loaded is None:
+            return bandit.best_cluster()
+        n0 = self.prior_strength
+        misses = bandit.trials + bandit.pending - self.hits
+        value = rng.beta(np.maximum(n0 * self.prior_valid + self.hits, _BETA_FLOOR),
+                         np.maximum(n0 * (1.0 - self.prior_valid) + misses, _BETA_FLOOR))
+        found = self.hits.sum()
+        if found and self.arm_error_weight:
+            overall = max(self.valid_error.sum() / found, 1e-12)
+            mean = np.where(self.hits > 0, self.valid_error / np.maximum(self.hits, 1), overall)
+            value = value - self.arm_error_weight * (mean / overall - 1.0)
+        return int(np.argmax(value))
 
     def propose(self, n: int, rng: np.random.Generator) -> list[Proposal]:
         """``n`` proposals, each at the arm :meth:`choose_arm` gives with an orientation drawn
@@ -253,8 +285,8 @@ class LearnedSampler(Sampler):
         bandit = self.bandit
         proposals = []
         for _ in range(n):
-            k = self.choose_arm()
-            noisy = self.score[k].copy()
+            k = self.choose_arm(rng)
+            noisy = self.score[k] + self.spin_evidence * self.evidence[k]
             if self.exploration > 0:
                 noisy = noisy / self.exploration + rng.gumbel(size=self.spins)
             if gripper.approach is None:  # a fixed set of random rotations: each once per round
@@ -275,21 +307,34 @@ class LearnedSampler(Sampler):
         return proposals
 
     def in_flight_limit(self) -> int | None:
-        """The regret bandit's: one proposal per untried arm while some are untried."""
+        """Without a model the regret bandit's (one proposal per untried arm while some are
+        untried); with one, no limit (proposals in flight count as invalid in the draw)."""
         self._require_reset()
-        return self.bandit.in_flight_limit()
+        return self.bandit.in_flight_limit() if self.loaded is None else None
 
     def observe(self, outcomes: Sequence[Outcome]) -> None:
-        """Fold each outcome into its arm's average regret (the regret sampler's update).
+        """Count each outcome's validity for its arm and spin, and fold it into the arm's
+        average regret (the regret sampler's update).
 
         Raises:
             ValueError: an outcome's proposal has no valid ``"cluster"`` record.
         """
+        from isf.planning.planner import NO_CONTACT_ERROR  # here: listing samplers stays light
+
         self._require_reset()
         try:
             self.bandit.observe(outcomes)
         except ValueError as err:
             raise ValueError(str(err).replace("regret:", "learned:", 1)) from None
+        for outcome in outcomes:
+            record = outcome.proposal.record
+            k, i = record["cluster"], record.get("spin")
+            valid = outcome.collision_free and outcome.error < NO_CONTACT_ERROR
+            if valid:
+                self.hits[k] += 1
+                self.valid_error[k] += outcome.error
+            if isinstance(i, (int, np.integer)) and 0 <= i < self.spins:
+                self.evidence[k, i] += 1.0 if valid else -1.0
 
 
 def _logit(p: np.ndarray) -> np.ndarray:

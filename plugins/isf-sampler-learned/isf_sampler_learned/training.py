@@ -7,17 +7,22 @@ contact surface touching) and the fitting error (:attr:`isf.FitResult.mean_dista
 metres). The plans run the existing samplers (``uniform`` and ``regret`` by default), seeded
 ``seed + k`` for the k-th plan, so the examples, and the model, are the same for a seed.
 
-Held-out accuracy is measured on whole objects the model did not see: every
-``holdout``-th object (in the order given) is left out of a first fit and classified by it;
-the model written is then fitted on all objects.
+Held-out figures are measured on whole objects the model did not see: every
+``holdout``-th object (in the order given) is left out of a first fit and scored by it; the
+model written is then fitted on all objects. Since the sampler ranks the starts of one object,
+the figures that matter are within each object (its AUC, the valid share of its top 10 %), not
+the accuracy at a threshold of 0.5.
 """
 
 from __future__ import annotations
 
 import logging
+import os
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -33,9 +38,13 @@ from .features import (
 )
 from .model import LearnedModel, fit_model
 
-__all__ = ["Examples", "HeldOut", "collect_examples", "held_out_accuracy", "train"]
+__all__ = ["Examples", "HeldOut", "L2", "ObjectRanking", "collect_examples", "held_out_accuracy",
+           "object_ranking", "train"]
 
 logger = logging.getLogger(__name__)
+
+L2 = 1.0
+"""The default L2 penalty of the trained models (:func:`~isf_sampler_learned.model.fit_model`)."""
 
 
 @dataclass(frozen=True)
@@ -58,6 +67,27 @@ class Examples:
         """The examples selected by the boolean mask ``keep``."""
         return Examples(self.features[keep], self.valid[keep], self.error[keep],
                         self.group[keep])
+
+    def save(self, path: str | os.PathLike) -> Path:
+        """Write the examples to ``path`` (``.npz``, plain arrays) to refit without replanning."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with path.open("wb") as stream:
+            np.savez(stream, feature_names=np.array(FEATURE_NAMES), features=self.features,
+                     valid=self.valid, error=self.error, group=self.group)
+        return path
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> Examples:
+        """Read examples written by :meth:`save` (no pickle).
+
+        Raises:
+            ValueError: the file holds features of another definition.
+        """
+        with np.load(path, allow_pickle=False) as data:
+            if tuple(data["feature_names"].tolist()) != FEATURE_NAMES:
+                raise ValueError(f"{path} holds other features than {FEATURE_VERSION}")
+            return cls(data["features"], data["valid"], data["error"], data["group"])
 
 
 @dataclass(eq=False, kw_only=True)
@@ -141,6 +171,12 @@ class HeldOut:
         top_decile_valid: share of valid starts among the model's top 10 % held-out starts.
         valid_rate: share of valid starts among all held-out starts.
         examples: held-out starts.
+        object_auc: mean over the held-out objects with both labels of the AUC of the model's
+            ranking of that object's starts (0.5: no better than chance); None without such
+            an object.
+        object_top_decile_valid: mean over the held-out objects of the valid share among the
+            top 10 % of that object's starts by the model.
+        object_valid_rate: mean over the held-out objects of their valid share.
     """
 
     accuracy: float
@@ -148,6 +184,9 @@ class HeldOut:
     top_decile_valid: float
     valid_rate: float
     examples: int
+    object_auc: float | None
+    object_top_decile_valid: float
+    object_valid_rate: float
 
 
 def held_out_accuracy(examples: Examples, holdout: int, **fit_args) -> HeldOut | None:
@@ -163,31 +202,86 @@ def held_out_accuracy(examples: Examples, holdout: int, **fit_args) -> HeldOut |
     truth = examples.valid[test]
     top = p >= np.quantile(p, 0.9)
     rate = float(truth.mean())
+    ranking = object_ranking(p, truth, examples.group[test])
     return HeldOut(accuracy=float(((p > 0.5) == truth).mean()), base_rate=max(rate, 1 - rate),
                    top_decile_valid=float(truth[top].mean()), valid_rate=rate,
-                   examples=int(test.sum()))
+                   examples=int(test.sum()), object_auc=ranking.auc,
+                   object_top_decile_valid=ranking.top_decile_valid,
+                   object_valid_rate=ranking.valid_rate)
+
+
+class ObjectRanking(NamedTuple):
+    """How well scores rank the starts within each object, averaged over the objects.
+
+    Attributes:
+        auc: mean over the objects with both labels of the probability that a valid start
+            outscores an invalid one (0.5: chance); None without such an object.
+        top_decile_valid: mean over the objects of the valid share of their top 10 % starts.
+        valid_rate: mean over the objects of their valid share.
+    """
+
+    auc: float | None
+    top_decile_valid: float
+    valid_rate: float
+
+
+def object_ranking(score: np.ndarray, valid: np.ndarray, group: np.ndarray) -> ObjectRanking:
+    """The within-object ranking figures of ``score`` (M,) for labels ``valid`` (M,) of starts
+    from objects ``group`` (M,)."""
+    aucs, tops, rates = [], [], []
+    for g in np.unique(group):
+        mine = group == g
+        auc = _auc(score[mine], valid[mine])
+        if auc is not None:
+            aucs.append(auc)
+        best = np.argsort(-score[mine], kind="stable")[:max(1, round(0.1 * mine.sum()))]
+        tops.append(valid[mine][best].mean())
+        rates.append(valid[mine].mean())
+    return ObjectRanking(float(np.mean(aucs)) if aucs else None, float(np.mean(tops)),
+                         float(np.mean(rates)))
+
+
+def _auc(score: np.ndarray, truth: np.ndarray) -> float | None:
+    """The probability that a valid start outscores an invalid one (ties count half: the
+    Mann-Whitney statistic), or None when one label is missing."""
+    from scipy.stats import rankdata
+
+    positives = int(truth.sum())
+    negatives = len(truth) - positives
+    if not positives or not negatives:
+        return None
+    ranks = rankdata(score)
+    return float((ranks[truth].sum() - positives * (positives + 1) / 2) / (positives * negatives))
 
 
 def train(gripper, objects: Sequence, *, samplers: Sequence[str] = ("uniform", "regret"),
-          samples: int = 60, seed: int = 0, holdout: int = 4,
+          samples: int = 60, seed: int = 0, holdout: int = 4, l2: float = L2,
+          examples: Examples | None = None,
           progress: Callable[[str], None] | None = None) -> tuple[LearnedModel, HeldOut | None]:
-    """Collect examples (:func:`collect_examples`), measure held-out accuracy and fit the model
+    """Collect examples (:func:`collect_examples`), measure held-out figures and fit the model
     on all of them.
+
+    Args:
+        l2: the model's L2 penalty (:func:`~isf_sampler_learned.model.fit_model`).
+        examples: examples collected before from the same objects, samplers, samples and seed
+            (:meth:`Examples.load`); None: plan the objects now.
 
     Returns:
         the model (its ``info`` holds the objects, seed, counts and held-out figures) and the
         :class:`HeldOut` figures (None when there are too few objects to hold any out).
     """
-    examples = collect_examples(gripper, objects, samplers=samplers, samples=samples, seed=seed,
-                                progress=progress)
+    if examples is None:
+        examples = collect_examples(gripper, objects, samplers=samplers, samples=samples,
+                                    seed=seed, progress=progress)
     identity = dict(gripper_sha256=gripper_sha256(gripper), gripper_name=gripper.name)
-    held = held_out_accuracy(examples, holdout, **identity)
+    held = held_out_accuracy(examples, holdout, l2=l2, **identity)
     info = {
         "objects": [getattr(o, "name", str(o)) for o in objects],
-        "samplers": list(samplers), "samples": samples, "seed": seed,
+        "samplers": list(samplers), "samples": samples, "seed": seed, "l2": l2,
         "examples": int(len(examples.valid)), "valid": int(examples.valid.sum()),
         "feature_version": FEATURE_VERSION, "features": list(FEATURE_NAMES),
         "held_out": None if held is None else held.__dict__.copy(),
     }
-    model = fit_model(examples.features, examples.valid, examples.error, info=info, **identity)
+    model = fit_model(examples.features, examples.valid, examples.error, info=info, l2=l2,
+                      **identity)
     return model, held

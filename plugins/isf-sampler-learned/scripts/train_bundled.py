@@ -13,6 +13,10 @@ but the model files.
 
 Run from the repository root (about 5 minutes per gripper on one core):
     python plugins/isf-sampler-learned/scripts/train_bundled.py [--gripper NAME] [--seed 0]
+        [--cache DIR]
+
+``--cache DIR`` keeps each gripper's examples in ``DIR`` (and reuses them when present), so
+the models can be refitted without planning again.
 """
 
 from __future__ import annotations
@@ -25,7 +29,7 @@ from pathlib import Path
 
 import isf
 from isf_sampler_learned.bundled import MODELS_DIR, tagged_franka_hand
-from isf_sampler_learned.training import train
+from isf_sampler_learned.training import Examples, collect_examples, train
 
 GRIPPERS = ("paper-parallel", "flat-parallel", "three-finger", "franka-hand")
 TRAIN_SHAPES = ("shape:cylinder", "shape:box", "shape:sphere", "shape:capsule", "shape:torus")
@@ -54,6 +58,7 @@ def main() -> None:
                         help="train this gripper only (repeatable; default all)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--samples", type=int, default=60)
+    parser.add_argument("--cache", type=Path, help="folder to keep and reuse the examples in")
     args = parser.parse_args()
     objects = training_objects()
     warnings.simplefilter("ignore")  # objects far larger than a jaw's opening are expected
@@ -61,8 +66,19 @@ def main() -> None:
         for name in args.gripper or GRIPPERS:
             gripper = (tagged_franka_hand(Path(folder)) if name == "franka-hand"
                        else isf.load_gripper(name))
+            cached = (None if args.cache is None else
+                      args.cache / f"{name}-{len(objects)}-objects-seed{args.seed}-"
+                      f"samples{args.samples}.npz")
+            progress = lambda line, name=name: print(name, line, flush=True)  # noqa: E731
+            if cached is not None and cached.exists():
+                examples = Examples.load(cached)
+            else:
+                examples = collect_examples(gripper, objects, samples=args.samples,
+                                            seed=args.seed, progress=progress)
+                if cached is not None:
+                    examples.save(cached)
             model, held = train(gripper, objects, samples=args.samples, seed=args.seed,
-                                progress=lambda line, name=name: print(name, line, flush=True))
+                                examples=examples)
             path = model.save(MODELS_DIR / f"{name}.npz")
             print(f"{name}: held-out {held}; wrote {path}", flush=True)
 

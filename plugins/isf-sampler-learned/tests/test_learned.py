@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import isf
+from isf.planning.planner import NO_CONTACT_ERROR
 from isf.samplers import Outcome, available_samplers, get_sampler
 from isf.samplers.regret import RegretSampler
 from isf.testing import canonical_gripper, canonical_object, check_sampler
@@ -30,7 +31,7 @@ from isf_sampler_learned.features import (
     gripper_axes,
 )
 from isf_sampler_learned.model import MODEL_FORMAT, fit_model
-from isf_sampler_learned.training import collect_examples
+from isf_sampler_learned.training import Examples, collect_examples, object_ranking
 
 BUNDLED = ("paper-parallel", "flat-parallel", "three-finger")
 
@@ -202,33 +203,71 @@ def test_a_model_for_another_gripper_fails_the_plan_with_one_line(tmp_path):
                  sampler=LearnedSampler(model=str(path)))
 
 
-def test_proposals_follow_the_model_then_the_outcomes(tmp_path):
+def test_the_first_proposal_follows_the_model(tmp_path):
     gripper, obj = canonical_gripper(), canonical_object("box")
     # valid when the approach axis faces the surface: every facing start scores high, so use
     # the closing extent (feature 2) to rank them instead
     path = synthetic_model(gripper, tmp_path / "m.npz", feature=2)
-    sampler = LearnedSampler(model=str(path), exploration=0.0, model_arms=2)
+    # a prior worth 10^6 outcomes: the Thompson draw is the prior itself
+    sampler = LearnedSampler(model=str(path), exploration=0.0, model_arms=2,
+                             prior_strength=1e6)
     rng = np.random.default_rng(0)
     sampler.reset(obj, gripper, rng)
-    arms = sampler.bandit.k
-    assert arms == sampler.k_clusters + 2
-    # first round: every arm once, best prior first, each at its best-scored spin
-    first = [sampler.propose(1, rng)[0] for _ in range(arms)]
-    order = [p.record["cluster"] for p in first]
-    assert sorted(order) == list(range(arms))
-    np.testing.assert_array_equal(order, np.argsort(-sampler.prior, kind="stable"))
-    for p in first:
-        k, i = p.record["cluster"], p.record["spin"]
-        assert sampler.score[k, i] == sampler.score[k].max()
-        assert p.record["p_valid"] == sampler.p_valid[k, i]
-    # then the regret rule on the outcomes: the least average error, collisions penalised
-    errors = np.linspace(5e-3, 1e-3, arms)
-    sampler.observe([Outcome(p, float(errors[p.record["cluster"]]), collision_free=k != arms - 2)
-                     for k, p in enumerate(first)])
-    best = int(np.argmin(errors * np.where(np.arange(arms) == order[arms - 2], 1.2, 1.0)))
-    assert sampler.propose(1, rng)[0].record["cluster"] == best
+    assert sampler.bandit.k == sampler.k_clusters + 2
+    # the synthetic model is nearly certain everywhere: give the arms distinct priors
+    sampler.prior_valid = rng.permutation(np.linspace(0.1, 0.9, sampler.bandit.k))
+    first = sampler.propose(1, rng)[0]
+    k, i = first.record["cluster"], first.record["spin"]
+    assert k == int(np.argmax(sampler.prior_valid))
+    assert sampler.score[k, i] == sampler.score[k].max()
+    assert first.record["p_valid"] == sampler.p_valid[k, i]
     with pytest.raises(ValueError, match="learned: outcome record"):
         sampler.observe([Outcome(isf.samplers.Proposal(np.eye(4)), 1e-3, True)])
+
+
+def test_outcomes_take_over_from_the_model(tmp_path):
+    gripper, obj = canonical_gripper(), canonical_object("box")
+    path = synthetic_model(gripper, tmp_path / "m.npz", feature=2)
+    sampler = LearnedSampler(model=str(path), arm_error_weight=0.0)
+    rng = np.random.default_rng(1)
+    sampler.reset(obj, gripper, rng)
+    # the arm the model likes least is the only one whose grasps are valid
+    good = int(np.argmin(sampler.prior_valid))
+    chosen = []
+    for _ in range(60):
+        (proposal,) = sampler.propose(1, rng)
+        k = proposal.record["cluster"]
+        chosen.append(k)
+        valid = k == good
+        sampler.observe([Outcome(proposal, 1e-3 if valid else NO_CONTACT_ERROR,
+                                 collision_free=valid)])
+    assert sampler.hits[good] == chosen.count(good)
+    assert sampler.hits.sum() == sampler.hits[good]
+    # every draw of the last 20 goes to the good arm (Beta(31+, ~1) against Beta(~1, 3+))
+    assert chosen[-20:].count(good) >= 18
+    # the regret table is the regret sampler's: mean error, collisions penalised by gamma
+    bad = [k for k in set(chosen) if k != good]
+    np.testing.assert_allclose(sampler.bandit.regret[good], 1e-3)
+    assert all(sampler.bandit.regret[k] > NO_CONTACT_ERROR for k in bad)
+
+
+def test_a_valid_spin_is_preferred_at_its_arm(tmp_path):
+    gripper, obj = canonical_gripper(), canonical_object("box")
+    path = synthetic_model(gripper, tmp_path / "m.npz", feature=2)
+    sampler = LearnedSampler(model=str(path), exploration=0.0, spin_evidence=100.0)
+    rng = np.random.default_rng(2)
+    sampler.reset(obj, gripper, rng)
+    (proposal,) = sampler.propose(1, rng)
+    k, i = proposal.record["cluster"], proposal.record["spin"]
+    worst = int(np.argmin(sampler.score[k]))
+    fake = isf.samplers.Proposal(proposal.T_object_gripper, record={"cluster": k, "spin": worst})
+    sampler.observe([Outcome(proposal, NO_CONTACT_ERROR, collision_free=False),
+                     Outcome(fake, 1e-3, collision_free=True)])
+    np.testing.assert_array_equal(np.flatnonzero(sampler.evidence[k]), sorted({i, worst}))
+    assert sampler.evidence[k, worst] == 1 and sampler.evidence[k, i] == -1
+    # the bonus of 100 logit units outweighs any score difference: the valid spin is next
+    noisy = sampler.score[k] + sampler.spin_evidence * sampler.evidence[k]
+    assert int(np.argmax(noisy)) == worst
 
 
 def test_without_a_model_the_arms_are_the_regret_samplers_clusters():
@@ -255,6 +294,29 @@ def test_training_examples_are_labelled_and_deterministic():
     assert one.features.shape == (8, len(FEATURE_NAMES)) and list(one.group) == [0] * 4 + [1] * 4
     plan = isf.plan(gripper, objects[0], samples=4, sampler="uniform", seed=5)
     assert sorted(one.valid[:4]) == sorted(g.valid for g in plan.grasps)
+
+
+def test_within_object_ranking_matches_scikit_learn(tmp_path):
+    from sklearn.metrics import roc_auc_score
+
+    rng = np.random.default_rng(3)
+    group = np.repeat(np.arange(4), 50)
+    valid = rng.uniform(size=200) < 0.3 + 0.1 * group
+    score = np.round(valid + rng.normal(scale=1.0, size=200), 1)  # informative, with ties
+    valid[group == 3] = True  # one label only: no AUC for that object
+    ranking = object_ranking(score, valid, group)
+    expected = np.mean([roc_auc_score(valid[group == g], score[group == g]) for g in range(3)])
+    assert ranking.auc == pytest.approx(expected, abs=1e-12)
+    assert ranking.valid_rate == pytest.approx(np.mean([valid[group == g].mean()
+                                                        for g in range(4)]))
+    top = [valid[group == g][np.argsort(-score[group == g], kind="stable")[:5]].mean()
+           for g in range(4)]
+    assert ranking.top_decile_valid == pytest.approx(np.mean(top))
+    examples = Examples(rng.uniform(size=(200, len(FEATURE_NAMES))), valid,
+                        np.where(valid, 1e-3, np.inf), group)
+    again = Examples.load(examples.save(tmp_path / "examples.npz"))
+    for name in ("features", "valid", "error", "group"):
+        np.testing.assert_array_equal(getattr(again, name), getattr(examples, name))
 
 
 def test_train_command_reports_a_bad_gripper_in_one_line(tmp_path):
