@@ -31,7 +31,10 @@ from isf.exceptions import InvalidInputError
 
 from .features import FEATURE_NAMES, FEATURE_VERSION
 
-__all__ = ["MODEL_FORMAT", "LearnedModel", "ModelFileError", "fit_model", "load_model"]
+__all__ = ["L2", "MODEL_FORMAT", "LearnedModel", "ModelFileError", "fit_model", "load_model"]
+
+L2 = 1.0
+"""The default L2 penalty of both heads on the non-intercept weights (:func:`fit_model`)."""
 
 MODEL_FORMAT = "isf-learned-sampler-model/1"
 _QUANTILES = (0.2, 0.4, 0.6, 0.8)
@@ -150,7 +153,7 @@ def load_model(path: str | os.PathLike, gripper_sha256: str | None = None) -> Le
 
 
 def fit_model(features: np.ndarray, valid: np.ndarray, error: np.ndarray, *,
-              gripper_sha256: str, gripper_name: str, l2: float = 1.0,
+              gripper_sha256: str, gripper_name: str, l2: float = L2,
               info: dict | None = None) -> LearnedModel:
     """Fit both heads (deterministic: no randomness).
 

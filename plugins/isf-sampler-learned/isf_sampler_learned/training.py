@@ -36,15 +36,12 @@ from .features import (
     gripper_axes,
     gripper_sha256,
 )
-from .model import LearnedModel, fit_model
+from .model import L2, LearnedModel, fit_model
 
-__all__ = ["Examples", "HeldOut", "L2", "ObjectRanking", "collect_examples", "held_out_accuracy",
+__all__ = ["Examples", "HeldOut", "ObjectRanking", "collect_examples", "held_out_accuracy",
            "object_ranking", "train"]
 
 logger = logging.getLogger(__name__)
-
-L2 = 1.0
-"""The default L2 penalty of the trained models (:func:`~isf_sampler_learned.model.fit_model`)."""
 
 
 @dataclass(frozen=True)
@@ -243,15 +240,14 @@ def object_ranking(score: np.ndarray, valid: np.ndarray, group: np.ndarray) -> O
 
 def _auc(score: np.ndarray, truth: np.ndarray) -> float | None:
     """The probability that a valid start outscores an invalid one (ties count half: the
-    Mann-Whitney statistic), or None when one label is missing."""
-    from scipy.stats import rankdata
+    Mann-Whitney statistic over the pairs), or None when one label is missing."""
+    from scipy.stats import mannwhitneyu
 
-    positives = int(truth.sum())
-    negatives = len(truth) - positives
-    if not positives or not negatives:
+    truth = np.asarray(truth, dtype=bool)
+    positives, negatives = score[truth], score[~truth]
+    if not len(positives) or not len(negatives):
         return None
-    ranks = rankdata(score)
-    return float((ranks[truth].sum() - positives * (positives + 1) / 2) / (positives * negatives))
+    return float(mannwhitneyu(positives, negatives).statistic / (len(positives) * len(negatives)))
 
 
 def train(gripper, objects: Sequence, *, samplers: Sequence[str] = ("uniform", "regret"),
