@@ -24,7 +24,7 @@ import pinocchio as pin
 
 from .gripper.model import ContactSurface, Gripper
 from .object.surface import ObjectSurface
-from .samplers.base import Outcome, Proposal, Sampler
+from .samplers.base import NO_CONTACT_ERROR, Outcome, Proposal, Sampler
 
 __all__ = ["canonical_gripper", "canonical_object", "check_sampler"]
 
@@ -159,6 +159,17 @@ def _check_proposals(
             _fail(sampler, f"{where}.record is not JSON-serialisable ({err}); use plain types")
 
 
+def _planner_outcome(proposal: Proposal, i: int) -> Outcome:
+    """The ``i``-th of a cycle of the outcomes the planner reports: valid, colliding (its
+    contacts touching), collision-free but not touching (``NO_CONTACT_ERROR``)."""
+    error = 1e-3 * (i + 1)
+    if i % 3 == 0:
+        return Outcome(proposal, error, collision_free=True, valid=True)
+    if i % 3 == 1:
+        return Outcome(proposal, error, collision_free=False, valid=False)
+    return Outcome(proposal, NO_CONTACT_ERROR, collision_free=True, valid=False)
+
+
 def _run_plan(
     sampler: Sampler, obj: ObjectSurface, gripper: Gripper, seed: int
 ) -> list[list[Proposal]]:
@@ -170,11 +181,7 @@ def _run_plan(
         proposals = sampler.propose(n, rng)
         _check_proposals(sampler, proposals, n, gripper)
         batches.append(proposals)
-        outcomes = [
-            Outcome(p, error=1e-3 * (i + 1), collision_free=i % 2 == 0)
-            for i, p in enumerate(proposals)
-        ]
-        sampler.observe(outcomes)
+        sampler.observe([_planner_outcome(p, i) for i, p in enumerate(proposals)])
     proposals = sampler.propose(3, rng)
     _check_proposals(sampler, proposals, 3, gripper)
     batches.append(proposals)
@@ -215,7 +222,8 @@ def check_sampler(
     Checks: ``name`` and ``description`` are set; ``propose(n)`` returns a
     list of exactly ``n`` :class:`Proposal`; each pose is finite with last row
     ``[0, 0, 0, 1]`` and a proper rotation; ``q`` is None or inside the joint
-    limits; ``record`` is JSON-serialisable; ``observe`` accepts outcomes; two
+    limits; ``record`` is JSON-serialisable; ``observe`` accepts outcomes of
+    each kind the planner reports (valid, colliding, not touching); two
     fresh instances with the same seed propose identical grasps; ``reset``
     starts a plan afresh; NumPy's and Python's global RNGs are untouched.
 

@@ -4,13 +4,17 @@ from __future__ import annotations
 
 import random
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 import pytest
 
+import isf.planning.planner
+import isf.samplers.base
 from isf.exceptions import ConfigError
 from isf.object.surface import ObjectSurface
 from isf.samplers import (
+    NO_CONTACT_ERROR,
     Outcome,
     Proposal,
     RegretSampler,
@@ -180,6 +184,23 @@ def test_check_sampler_rejects_non_samplers():
         check_sampler(dict)
 
 
+class _Listener(UniformSampler):
+    """Keeps every outcome it is shown, in a class attribute (check_sampler copies instances)."""
+
+    heard: ClassVar[list[Outcome]] = []
+
+    def observe(self, outcomes):
+        _Listener.heard.extend(outcomes)
+
+
+def test_check_sampler_shows_each_kind_of_planner_outcome():
+    _Listener.heard.clear()
+    check_sampler(_Listener)
+    kinds = {(o.valid, o.collision_free, o.error == NO_CONTACT_ERROR) for o in _Listener.heard}
+    # valid; colliding with its contacts touching; collision-free but not touching
+    assert kinds == {(True, True, False), (False, False, False), (False, True, True)}
+
+
 # ---------------------------------------------------------------- data classes
 
 
@@ -204,6 +225,26 @@ def test_proposal_rejects_bad_shapes(T, q):
 def test_outcome_rejects_nan_error():
     with pytest.raises(ValueError, match="inf"):
         Outcome(Proposal(np.eye(4)), error=float("nan"), collision_free=True)
+
+
+@pytest.mark.parametrize(("error", "collision_free", "valid"), [
+    (1e-3, True, True), (1e-3, False, False), (NO_CONTACT_ERROR, True, False),
+    (NO_CONTACT_ERROR - 1e-9, True, True), (float("inf"), True, False)])
+def test_outcome_valid_defaults_to_the_no_contact_convention(error, collision_free, valid):
+    outcome = Outcome(Proposal(np.eye(4)), error, np.bool_(collision_free))
+    assert outcome.valid is valid
+
+
+def test_outcome_valid_given_is_kept_and_must_be_collision_free():
+    proposal = Proposal(np.eye(4))
+    assert Outcome(proposal, 1e-3, True, valid=np.bool_(False)).valid is False
+    assert Outcome(proposal, NO_CONTACT_ERROR, True, valid=True).valid is True
+    with pytest.raises(ValueError, match="collision_free is False"):
+        Outcome(proposal, 1e-3, False, valid=True)
+
+
+def test_the_no_contact_error_is_one_constant():
+    assert isf.planning.planner.NO_CONTACT_ERROR is NO_CONTACT_ERROR
 
 
 # ------------------------------------------------------------------- helpers
@@ -371,3 +412,84 @@ def test_samplers_are_keyword_only():
     with pytest.raises(TypeError):
         RegretSampler(3)  # type: ignore[misc]
     assert issubclass(RegretSampler, Sampler)
+
+
+# ------------------------------------------------------- what the planner reports
+
+
+class _Numbering(UniformSampler):
+    """The uniform sampler, each proposal numbered in ``record["start"]`` and each outcome
+    kept under that number."""
+
+    def reset(self, obj, gripper, rng):
+        super().reset(obj, gripper, rng)
+        self.made, self.outcomes = 0, {}
+
+    def propose(self, n, rng):
+        proposals = []
+        for proposal in super().propose(n, rng):
+            proposals.append(Proposal(proposal.T_object_gripper,
+                                      record={**proposal.record, "start": self.made}))
+            self.made += 1
+        return proposals
+
+    def observe(self, outcomes):
+        self.outcomes.update((o.proposal.record["start"], o) for o in outcomes)
+
+
+def _outcomes_against_grasps(gripper, obj, samples):
+    """Plan with :class:`_Numbering`; each grasp with the outcome the sampler was shown."""
+    sampler = _Numbering()
+    result = isf.plan(gripper, obj, samples=samples, sampler=sampler, seed=0)
+    assert len(sampler.outcomes) == len(result.grasps) == samples
+    return [(g, sampler.outcomes[g.sampler_record["start"]]) for g in result.grasps]
+
+
+@pytest.fixture
+def no_inference(monkeypatch):
+    """Outcomes built without ``valid`` all come out invalid: what the planner's outcomes
+    say of validity is then its own statement (its error for a fit that does not touch is
+    unchanged: the planner holds the constant's value)."""
+    monkeypatch.setattr(isf.samplers.base, "NO_CONTACT_ERROR", 0.0)
+
+
+def _assert_outcomes_are_the_grasps_verdicts(pairs):
+    for grasp, outcome in pairs:
+        assert outcome.valid is grasp.valid
+        assert outcome.collision_free is grasp.collision_free
+
+
+def test_the_planners_outcomes_carry_each_grasps_validity(no_inference):
+    pairs = _outcomes_against_grasps("three-finger", isf.open_object("asset:mug"), 12)
+    _assert_outcomes_are_the_grasps_verdicts(pairs)
+    grasps = [g for g, _ in pairs]
+    assert any(g.valid for g in grasps)
+    assert any(not g.collision_free for g in grasps)  # some collide ...
+    assert any(g.collision_free and not g.in_contact for g in grasps)  # ... some do not touch
+
+
+def test_the_three_argument_outcome_infers_the_planners_verdict():
+    pairs = _outcomes_against_grasps("three-finger", isf.open_object("asset:mug"), 12)
+    for grasp, outcome in pairs:
+        assert Outcome(outcome.proposal, outcome.error, outcome.collision_free).valid is grasp.valid
+
+
+def test_on_a_scene_a_grasp_across_two_pieces_is_an_invalid_outcome(no_inference):
+    from _depth_camera import box_on_table, look_at, render_depth, table_mesh
+
+    from isf.scene import SceneView, load_scene
+
+    # two boxes side by side, touching along x = 0, seen from either side
+    boxes = [box_on_table((0.03, 0.05, 0.08), (-0.016, 0.0)),
+             box_on_table((0.03, 0.05, 0.06), (0.016, 0.0))]
+    views = []
+    for k, eye in enumerate([(-0.4, 0.1, 0.3), (0.4, -0.1, 0.3)]):
+        T_scene_camera = look_at(eye, (0.0, 0.0, 0.04))
+        depth, intrinsics = render_depth([table_mesh(), *boxes], T_scene_camera, noise=0.001,
+                                         seed=k)
+        views.append(SceneView(depth, intrinsics=intrinsics, T_scene_camera=T_scene_camera))
+    pairs = _outcomes_against_grasps("flat-parallel", load_scene(views, table="auto"), 12)
+    _assert_outcomes_are_the_grasps_verdicts(pairs)
+    grasps = [g for g, _ in pairs]
+    assert any(g.valid for g in grasps)
+    assert any(g.collision_free and g.in_contact and g.pieces == 2 for g in grasps)

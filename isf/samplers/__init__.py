@@ -9,6 +9,7 @@ from ..exports import lazy_exports
 _SOURCES = {  # each public name -> the module of this package that defines it (loaded on use)
     "ENTRY_POINT_GROUP": "registry",
     "ORIENTATIONS": "orientation",
+    "NO_CONTACT_ERROR": "base",
     "Outcome": "base",
     "Proposal": "base",
     "RegretSampler": "regret",

@@ -36,6 +36,7 @@ if TYPE_CHECKING:
     from ..object.surface import ObjectSurface
 
 __all__ = [
+    "NO_CONTACT_ERROR",
     "Outcome",
     "Proposal",
     "Sampler",
@@ -85,27 +86,52 @@ class Proposal:
         object.__setattr__(self, "record", dict(self.record))
 
 
+NO_CONTACT_ERROR = 0.05
+"""The :attr:`Outcome.error` the planner reports for a fit where some contact surface does not
+touch the object (or, on a scene, the contact surfaces rest on several pieces of it), in place
+of its mean distance, metres (a fit that touches reports a few millimetres)."""
+
+
 @dataclass(frozen=True, eq=False)
 class Outcome:
     """What became of one :class:`Proposal` after ISF and the collision check.
 
     Attributes:
         proposal: the proposal that was fitted.
-        error: fitting error of the ISF result (mean point-to-plane
-            distance), metres, lower is better; ``inf`` for a failed fit.
+        error: fitting error of the ISF result (mean point-to-plane distance), metres, lower
+            is better; ``NO_CONTACT_ERROR`` when some contact surface does not touch the
+            object (on a scene: when the contact surfaces rest on several pieces of it);
+            ``inf`` for a failed fit.
         collision_free: True when the fitted gripper does not penetrate the object.
+        valid: True when the fitted grasp is one the planner counts as valid
+            (:attr:`isf.Grasp.valid`: collision-free, every contact surface touching the
+            object and, on a scene, resting on one piece of it). The planner sets it; left
+            None (``Outcome(proposal, error, collision_free)``), it is inferred as
+            ``collision_free and error < NO_CONTACT_ERROR``. Always a bool once built.
+
+    Raises:
+        ValueError: ``error`` is NaN, or ``valid`` is True for a grasp that is not
+            collision-free.
     """
 
     proposal: Proposal
     error: float
     collision_free: bool
+    valid: bool | None = None
 
     def __post_init__(self) -> None:
         error = float(self.error)
         if math.isnan(error):
             raise ValueError("Outcome.error is NaN; report a failed fit as float('inf')")
+        collision_free = bool(self.collision_free)
+        valid = collision_free and error < NO_CONTACT_ERROR if self.valid is None \
+            else bool(self.valid)
+        if valid and not collision_free:
+            raise ValueError("Outcome.valid is True but collision_free is False; a valid grasp "
+                             "is collision-free")
         object.__setattr__(self, "error", error)
-        object.__setattr__(self, "collision_free", bool(self.collision_free))
+        object.__setattr__(self, "collision_free", collision_free)
+        object.__setattr__(self, "valid", valid)
 
 
 class Sampler(abc.ABC):

@@ -24,9 +24,9 @@ and an arm's *prior* ``pi`` is the mean ``P(valid)`` of its ``top`` best-scored 
   (Gumbel-max on the plan's ``rng``), turned by a uniform angle within its spin's share of
   the circle so that repeated draws differ.
 
-:meth:`~LearnedSampler.observe` counts each outcome's validity (collision-free and touching)
-for its arm and spin and updates the regret bandit's table too. Without a model the sampler
-is the regret sampler with evenly spread spins.
+:meth:`~LearnedSampler.observe` counts each outcome's validity (``Outcome.valid``, the
+planner's ``isf.Grasp.valid``) for its arm and spin and updates the regret bandit's table
+too. Without a model the sampler is the regret sampler with evenly spread spins.
 """
 
 from __future__ import annotations
@@ -313,14 +313,12 @@ class LearnedSampler(Sampler):
         return self.bandit.in_flight_limit() if self.loaded is None else None
 
     def observe(self, outcomes: Sequence[Outcome]) -> None:
-        """Count each outcome's validity for its arm and spin, and fold it into the arm's
-        average regret (the regret sampler's update).
+        """Count each outcome's validity (``Outcome.valid``) for its arm and spin, and fold it
+        into the arm's average regret (the regret sampler's update).
 
         Raises:
             ValueError: an outcome's proposal has no valid ``"cluster"`` record.
         """
-        from isf.planning.planner import NO_CONTACT_ERROR  # here: listing samplers stays light
-
         self._require_reset()
         try:
             self.bandit.observe(outcomes)
@@ -329,12 +327,11 @@ class LearnedSampler(Sampler):
         for outcome in outcomes:
             record = outcome.proposal.record
             k, i = record["cluster"], record.get("spin")
-            valid = outcome.collision_free and outcome.error < NO_CONTACT_ERROR
-            if valid:
+            if outcome.valid:
                 self.hits[k] += 1
                 self.valid_error[k] += outcome.error
             if isinstance(i, (int, np.integer)) and 0 <= i < self.spins:
-                self.evidence[k, i] += 1.0 if valid else -1.0
+                self.evidence[k, i] += 1.0 if outcome.valid else -1.0
 
 
 def _logit(p: np.ndarray) -> np.ndarray:

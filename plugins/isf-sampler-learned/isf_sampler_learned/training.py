@@ -112,7 +112,7 @@ class _RecordingSampler(Sampler):
 
     def observe(self, outcomes: Sequence[Outcome]) -> None:
         self.inner.observe([Outcome(self.starts[o.proposal.record["start"]], o.error,
-                                    o.collision_free) for o in outcomes])
+                                    o.collision_free, o.valid) for o in outcomes])
 
     def in_flight_limit(self) -> int | None:
         return self.inner.in_flight_limit()

@@ -11,8 +11,7 @@ import numpy as np
 import pytest
 
 import isf
-from isf.planning.planner import NO_CONTACT_ERROR
-from isf.samplers import Outcome, available_samplers, get_sampler
+from isf.samplers import NO_CONTACT_ERROR, Outcome, available_samplers, get_sampler
 from isf.samplers.regret import RegretSampler
 from isf.testing import canonical_gripper, canonical_object, check_sampler
 from isf_sampler_learned import (
@@ -240,7 +239,7 @@ def test_outcomes_take_over_from_the_model(tmp_path):
         chosen.append(k)
         valid = k == good
         sampler.observe([Outcome(proposal, 1e-3 if valid else NO_CONTACT_ERROR,
-                                 collision_free=valid)])
+                                 collision_free=valid, valid=valid)])
     assert sampler.hits[good] == chosen.count(good)
     assert sampler.hits.sum() == sampler.hits[good]
     # every draw of the last 20 goes to the good arm (Beta(31+, ~1) against Beta(~1, 3+))
@@ -261,13 +260,33 @@ def test_a_valid_spin_is_preferred_at_its_arm(tmp_path):
     k, i = proposal.record["cluster"], proposal.record["spin"]
     worst = int(np.argmin(sampler.score[k]))
     fake = isf.samplers.Proposal(proposal.T_object_gripper, record={"cluster": k, "spin": worst})
-    sampler.observe([Outcome(proposal, NO_CONTACT_ERROR, collision_free=False),
-                     Outcome(fake, 1e-3, collision_free=True)])
+    sampler.observe([Outcome(proposal, NO_CONTACT_ERROR, collision_free=False, valid=False),
+                     Outcome(fake, 1e-3, collision_free=True, valid=True)])
     np.testing.assert_array_equal(np.flatnonzero(sampler.evidence[k]), sorted({i, worst}))
     assert sampler.evidence[k, worst] == 1 and sampler.evidence[k, i] == -1
     # the bonus of 100 logit units outweighs any score difference: the valid spin is next
     noisy = sampler.score[k] + sampler.spin_evidence * sampler.evidence[k]
     assert int(np.argmax(noisy)) == worst
+
+
+def test_validity_is_the_outcomes_own_flag(tmp_path):
+    gripper, obj = canonical_gripper(), canonical_object("box")
+    path = synthetic_model(gripper, tmp_path / "m.npz", feature=2)
+    sampler = LearnedSampler(model=str(path))
+    rng = np.random.default_rng(3)
+    sampler.reset(obj, gripper, rng)
+    first, second = sampler.propose(2, rng)
+    # the flag against the error convention, both ways: the sampler must read the flag
+    sampler.observe([Outcome(first, 1e-3, collision_free=True, valid=False),
+                     Outcome(second, 2 * NO_CONTACT_ERROR, collision_free=True, valid=True)])
+    expected_hits, expected_evidence = np.zeros(sampler.bandit.k), np.zeros((sampler.bandit.k,
+                                                                             sampler.spins))
+    for proposal, sign in ((first, -1.0), (second, 1.0)):
+        expected_evidence[proposal.record["cluster"], proposal.record["spin"]] += sign
+    expected_hits[second.record["cluster"]] = 1
+    np.testing.assert_array_equal(sampler.hits, expected_hits)
+    np.testing.assert_array_equal(sampler.evidence, expected_evidence)
+    np.testing.assert_allclose(sampler.valid_error.sum(), 2 * NO_CONTACT_ERROR)
 
 
 def test_without_a_model_the_arms_are_the_regret_samplers_clusters():
