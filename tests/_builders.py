@@ -73,3 +73,14 @@ def random_rotation(rng, angle):
 
     axis = rng.normal(size=3)
     return exp_so3(angle * axis / np.linalg.norm(axis))
+
+
+def sphere_contacts(rng, low: int, high: int, radius: float = 0.03):
+    """``low`` to ``high - 1`` point contacts at random on a sphere of ``radius`` (m) about the
+    origin, pushing inwards, and object properties whose centre of mass lies a few mm off the
+    origin (object radius 5 cm): points (n, 3), inward normals (n, 3), properties."""
+    from isf.quality import ObjectProperties
+
+    points = rng.normal(size=(int(rng.integers(low, high)), 3))
+    points = radius * points / np.linalg.norm(points, axis=1, keepdims=True)
+    return points, -points, ObjectProperties(rng.normal(scale=0.008, size=3), 0.05)

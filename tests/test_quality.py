@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from _builders import sphere_contacts
 
 import isf
 from isf.quality import (
@@ -171,6 +172,33 @@ def test_resisting_a_load_agrees_with_the_largest_load_of_the_lp():
                 assert got == expected, (load, factor)
 
 
+def test_a_failed_load_test_bounds_the_largest_load_of_the_lp():
+    """Two methods: a load the feasibility test does not resist bounds the LP's largest load
+    (HiGHS) from above by the test's Farkas certificate, at most the load tested; tested 5 %
+    above the largest load, the bound is that load (to 1e-8 of it) for most directions."""
+    from isf.quality.gravity import _LoadBalance
+
+    tight = tested = 0
+    for contacts, com in [(antipodal_patches(), np.array([0.01, 0.0, 0.02])),
+                          *_random_contact_sets(seed=5, count=20)]:
+        for mu in (0.3, 0.5):
+            largest = gravity_loads(contacts, mu, com, DIRECTIONS, 20.0)
+            balance = _LoadBalance(contacts, mu, com, 20.0, 4, 0.03)
+            for d, load in zip(DIRECTIONS, largest):
+                if load < 1e-3:
+                    continue
+                below = balance.test(d, 0.95 * load)
+                assert below.resisted and below.bound == 0.95 * load
+                for factor in (1.05, 3.0):
+                    above = balance.test(d, factor * load)
+                    assert not above.resisted
+                    assert load * (1 - 1e-9) <= above.bound <= factor * load
+                    if factor == 1.05:
+                        tested += 1
+                        tight += above.bound <= load * (1 + 1e-8)
+    assert tested >= 50 and tight >= 0.75 * tested
+
+
 def _random_contact_sets(seed: int = 1, count: int = 12):
     """Point contacts on a sphere of radius 3 cm pushing inwards, 1 to 5 of them, and a centre
     of mass near the sphere's centre."""
@@ -273,3 +301,57 @@ def test_contacts_of_many_grasps_at_once_are_those_of_each():
     records = [q.to_dict() for q in grasps_quality(gripper, cylinder, poses, joints)]
     assert records == [isf.quality.grasp_quality(gripper, cylinder, T, q).to_dict()
                        for T, q in zip(poses, joints)]
+
+
+def test_grasps_with_the_same_contacts_share_one_record():
+    """A grasp repeated to rounding (the same pose, or moved by 1e-15 m) shares the first
+    one's record, which is its own record computed alone up to rounding; a grasp moved by
+    a micrometre keeps its own. Sorting the repeats reads no margin and no epsilon."""
+    from isf.quality import grasps_quality, quality_rank_key
+
+    gripper = isf.load_gripper("paper-parallel")
+    cylinder = isf.open_object("shape:cylinder")
+    result = isf.plan(gripper, cylinder, samples=8, seed=1, diversity=None, rank="fit")
+    grasp = next(g for g in result.grasps if g.valid)
+    rounded, moved = grasp.T_object_gripper.copy(), grasp.T_object_gripper.copy()
+    rounded[:3, 3] += 1e-15
+    moved[:3, 3] += 1e-6
+    poses = np.array([grasp.T_object_gripper, grasp.T_object_gripper, rounded, moved])
+    heavy = QualityConfig(mass=3.0)  # the grasp falls short of its weight: margins compared
+    records = grasps_quality(gripper, cylinder, poses, np.array([grasp.q] * 4), heavy)
+    assert records[1] is records[0] and records[2] is records[0]
+    assert records[3] is not records[0]
+    order = sorted(range(3), key=lambda k: (quality_rank_key(records[k], 0.0), k))
+    assert order == [0, 1, 2]
+    assert "_space" not in records[0].__dict__ and "held_margin" not in records[0].__dict__
+    assert 0.0 < records[0].held_margin < 1.0
+    alone = isf.quality.grasp_quality(gripper, cylinder, rounded, grasp.q, heavy).to_dict()
+    shared = records[2].to_dict()
+    assert shared.keys() == alone.keys()
+    for name, value in alone.items():
+        if isinstance(value, (dict, float)):
+            assert shared[name] == pytest.approx(value, rel=1e-9)
+        else:
+            assert shared[name] == value
+
+
+def test_margins_below_the_target_are_ordered_as_their_values():
+    """The ranking orders held margins below the target by Farkas bounds from feasibility
+    tests; the order is the one the computed margins (wrench space or LP) give, for margins
+    far apart and for contacts moved by 1e-9 to 1e-4 m (margins apart by about as much)."""
+    from isf.quality import MARGIN_TARGET, quality_rank_key
+
+    rng = np.random.default_rng(11)
+    qualities = []
+    for k in range(30):  # three to five point contacts on a 3 cm sphere, pushing inwards
+        points, normals, properties = sphere_contacts(rng, 3, 6)
+        for shift in (0.0, 1e-9, 1e-6, 1e-4) if k % 3 == 0 else (0.0,):
+            contacts = Contacts.from_points(points + shift * rng.normal(size=points.shape),
+                                            normals)
+            qualities.append(contacts_quality(contacts, properties, QualityConfig(mass=1.0)))
+    lazy = sorted(range(len(qualities)), key=lambda k: quality_rank_key(qualities[k], 0.0))
+    held = [min(q.min_margin, MARGIN_TARGET) for q in qualities]
+    full = sorted(range(len(qualities)),
+                  key=lambda k: (-held[k], qualities[k].com_offset, -qualities[k].epsilon))
+    assert lazy == full
+    assert sum(0 < h < MARGIN_TARGET for h in held) >= 15

@@ -7,6 +7,7 @@ import sys
 import jsonschema
 import numpy as np
 import pytest
+from _builders import sphere_contacts
 
 import isf
 from isf.planning.plan_json import SCHEMA_PATH
@@ -125,16 +126,14 @@ def test_margins_ordered_by_bounds_as_by_their_values():
     feasibility tests; the order is the one the computed margins give, also for near-equal
     margins (the same contacts moved by 1e-12 m: the values decide), and the bounds settle
     the others without computing a margin."""
-    from isf.quality import Contacts, ObjectProperties, quality_rank_key
+    from isf.quality import Contacts, quality_rank_key
 
     rng = np.random.default_rng(4)
     qualities = []
     for k in range(40):  # three or four point contacts on a 3 cm sphere, pushing inwards
-        points = rng.normal(size=(int(rng.integers(3, 5)), 3))
-        points = 0.03 * points / np.linalg.norm(points, axis=1, keepdims=True)
-        properties = ObjectProperties(rng.normal(scale=0.008, size=3), 0.05)
+        points, normals, properties = sphere_contacts(rng, 3, 5)
         for shift in (0.0, 1e-12) if k % 4 == 0 else (0.0,):
-            contacts = Contacts.from_points(points + shift, -points)
+            contacts = Contacts.from_points(points + shift, normals)
             qualities.append(isf.quality.contacts_quality(contacts, properties,
                                                           QualityConfig(mass=1.0)))
     lazy = sorted(range(len(qualities)), key=lambda k: quality_rank_key(qualities[k], 0.0))

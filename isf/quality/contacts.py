@@ -214,7 +214,7 @@ def _patch_labels(points: np.ndarray, normals: np.ndarray, valid: np.ndarray,
     from 0 per group in the order of their first point, and the number of patches per group
     (G,): the connected components of the graph joining points within ``patch_gap`` whose
     normals differ by less than ``patch_angle`` (labels spread as the smallest index of a
-    component, by pointer jumping)."""
+    component, by pointer jumping, in the groups whose labels still change)."""
     gram = points @ points.transpose(0, 2, 1)
     squared = np.diagonal(gram, axis1=1, axis2=2)
     near = squared[:, :, None] + squared[:, None, :] - 2.0 * gram  # squared distances
@@ -223,13 +223,14 @@ def _patch_labels(points: np.ndarray, normals: np.ndarray, valid: np.ndarray,
               & valid[:, :, None] & valid[:, None, :])
     size = points.shape[1]
     linked[:, np.arange(size), np.arange(size)] = True  # padding: a component of its own
-    labels = np.broadcast_to(np.arange(size), valid.shape)
-    while True:
-        spread = np.where(linked, labels[:, None, :], size).min(axis=2)
+    labels = np.tile(np.arange(size), (len(valid), 1))
+    changing = np.arange(len(valid))
+    while changing.size:
+        current = labels[changing]
+        spread = np.where(linked[changing], current[:, None, :], size).min(axis=2)
         spread = np.take_along_axis(spread, spread, axis=1)  # pointer jumping
-        if np.array_equal(spread, labels):
-            break
-        labels = spread
+        labels[changing] = spread
+        changing = changing[(spread != current).any(axis=1)]
     roots = (labels == np.arange(size)) & valid
     number = np.cumsum(roots, axis=1) - 1
     return np.take_along_axis(number, labels, axis=1), roots.sum(axis=1)

@@ -38,10 +38,16 @@ counts a grasp as holding in every direction."""
 
 _DIRECTIONS = np.array(list(SIX_DIRECTIONS.values()))
 
-_MARGIN_RESOLUTION = 1.0 / 4096.0
+_MARGIN_RESOLUTION = 1e-7
 """The ranking narrows the bounds of a held margin below :data:`MARGIN_TARGET` by feasibility
-tests down to this width; then it computes the margin (see :class:`_HigherMarginFirst`):
-near-duplicate grasps, whose margins no bound separates, cost about 12 tests and the margin."""
+tests down to this width (the tests' tolerance resolves margins to about 1e-8); then it computes
+the margin (see :class:`_HigherMarginFirst`): only grasps whose margins lie within about
+:data:`_MARGIN_SEPARATION` of each other cost their margins."""
+
+_SAME_CONTACTS = 1e-12
+""":func:`grasps_quality` gives grasps whose contact positions (metres) and normals agree to
+this one record: the rounding of one fit reached twice (a few 1e-15), far below what any
+metric resolves (the feasibility tests' tolerance is 1e-9 of the load)."""
 
 _MARGIN_SEPARATION = 1e-6
 """Bounds settle the order of two held margins only when they are this far apart (the
@@ -192,14 +198,20 @@ class GraspQuality:
         # what is known of each direction's margin (capped at the target): in [low, high)
         self._direction_low = np.zeros(len(_DIRECTIONS))
         self._direction_high = np.full(len(_DIRECTIONS), np.inf)
+        self._direction_step = np.full(len(_DIRECTIONS), 0.5 * _MARGIN_RESOLUTION)
         for k, d in enumerate(_DIRECTIONS):
-            if self._balance is None or not self._balance.resists(d, MARGIN_TARGET * self._weight):
+            if self._balance is None:
                 self._direction_high[k] = MARGIN_TARGET
+                break
+            test = self._balance.test(d, MARGIN_TARGET * self._weight)
+            if not test.resisted:
+                self._direction_high[k] = test.bound / self._weight
                 break
             self._direction_low[k] = MARGIN_TARGET
         else:
             self.held_margin = MARGIN_TARGET
             return
+        self._low, self._high = 0.0, float(self._direction_high.min())  # the smallest's bounds
         if not self._origin_may_be_inside and not resists_loads(
                 contacts, config.friction, properties.center_of_mass, _DIRECTIONS, 1.0, None,
                 config.cone_edges, properties.radius, until_failure=True).all():
@@ -216,37 +228,43 @@ class GraspQuality:
         ``(low, high, False)`` with the margin in ``[low, high)``."""
         if "held_margin" in self.__dict__:
             return self.held_margin, self.held_margin, True
-        return float(self._direction_low.min()), float(self._direction_high.min()), False
+        return self._low, self._high, False
 
-    def _refine_margin(self, other_low: float, other_high: float) -> None:
-        """Narrow the bounds of :attr:`held_margin` towards settling its order with a margin
-        known to lie in ``[other_low, other_high)`` (a value when they are equal): a test
-        whether the smallest margin reaches a load, against a value ``v`` at ``v`` minus, then
-        plus, :data:`_MARGIN_SEPARATION`, against bounds at the middle of this margin's bounds.
-        It tests the directions whose bounds do not settle it, one feasibility test each
-        (:func:`isf.quality.gravity.resists_loads`), until one fails, and keeps each
-        direction's bounds. Bounds no wider than :data:`_MARGIN_RESOLUTION` are replaced by
-        the value, computed (wrench space or linear programme)."""
+    def _refine_margin(self) -> None:
+        """Narrow the bounds of :attr:`held_margin` by one feasibility test
+        (:meth:`isf.quality.gravity._LoadBalance.test`), keeping each direction's bounds. The
+        smallest upper bound ``u`` of a direction bounds the margin from above; a direction
+        whose lower bound is below ``u`` is tested at ``u`` (likeliest to fail first); when
+        only the direction of ``u`` is left, it is tested a step below ``u`` (half
+        :data:`_MARGIN_RESOLUTION`, doubled after each failure, at most halfway to its lower
+        bound). A failed test lowers the direction's upper bound to the Farkas bound of the
+        test, which is the direction's margin (to about 1e-10) once the test lies on the
+        face its load leaves the feasible loads by: the bounds close in a few tests. Bounds
+        no wider than :data:`_MARGIN_RESOLUTION` are replaced by the value, computed (wrench
+        space or linear programme)."""
         if "held_margin" in self.__dict__:
             return
-        low, high, _ = self._margin_bounds()
-        if other_low == other_high:
-            inside = [t for t in (other_low - _MARGIN_SEPARATION, other_low + _MARGIN_SEPARATION)
-                      if low < t < high]
-            load = inside[0] if inside and high - low > _MARGIN_RESOLUTION else None
-        else:
-            load = 0.5 * (low + high) if high - low > _MARGIN_RESOLUTION else None
-        if load is None:
+        low, high, upper = self._direction_low, self._direction_high, self._high
+        if upper - self._low <= _MARGIN_RESOLUTION:
             self.held_margin  # noqa: B018 - computes and keeps it
             return
-        for k in np.argsort(self._direction_high, kind="stable"):  # likeliest to fail first
-            if self._direction_low[k] >= load:
-                continue
-            if self._balance.resists(_DIRECTIONS[k], load * self._weight):
-                self._direction_low[k] = load
-            else:
-                self._direction_high[k] = load
-                break
+        smallest = int(np.argmin(high))
+        others = [k for k in np.argsort(high, kind="stable")  # likeliest to fail first
+                  if k != smallest and low[k] < upper]
+        if others:
+            k, load = others[0], upper
+        else:
+            k = smallest
+            load = max(upper - self._direction_step[k], 0.5 * (low[k] + upper))
+        test = self._balance.test(_DIRECTIONS[k], load * self._weight)
+        if test.resisted:
+            low[k] = load
+            self._direction_step[k] = 0.5 * _MARGIN_RESOLUTION
+        else:
+            high[k] = max(min(test.bound / self._weight, load), low[k])
+            if not others:
+                self._direction_step[k] *= 2.0
+        self._low, self._high = float(low.min()), float(high.min())
 
     def __repr__(self) -> str:
         return (f"GraspQuality(friction={self.friction}, contacts={self.contacts}, "
@@ -340,12 +358,41 @@ def grasps_quality(gripper: Gripper, obj: ObjectSurface, T_object_gripper: np.nd
                    properties: ObjectProperties | None = None) -> list[GraspQuality]:
     """:func:`grasp_quality` of many grasps of one object: poses ``T_object_gripper``
     (G, 4, 4) and joints ``q`` (G, n_joints), their contact models built together
-    (:func:`isf.quality.contacts.grasps_contacts`); the same records."""
+    (:func:`isf.quality.contacts.grasps_contacts`); the same records, except that grasps with
+    the same contacts (positions and normals within 1e-12 m: a sampler that converges on one
+    grasp many times repeats it to rounding) share one record, the first one's (the same
+    object)."""
     config = QualityConfig() if config is None else config
     properties = object_properties(obj) if properties is None else properties
-    return [contacts_quality(contacts, properties, config)
-            for contacts in grasps_contacts(gripper, obj, T_object_gripper, q,
-                                            config.contact_model)]
+    contacts = grasps_contacts(gripper, obj, T_object_gripper, q, config.contact_model)
+    records: list[GraspQuality] = []
+    for k, first in enumerate(_first_with_same_contacts(contacts)):
+        records.append(records[first] if first < k
+                       else contacts_quality(contacts[k], properties, config))
+    return records
+
+
+def _first_with_same_contacts(contacts: list[Contacts]) -> np.ndarray:
+    """For each contact model, the index of the first one (itself, or an earlier one that is
+    the first of its kind) with the same contacts: the same contact surfaces and patches in
+    the same order, and positions (metres) and normals within :data:`_SAME_CONTACTS`; (G,)."""
+    first = np.arange(len(contacts))
+    kinds: dict[tuple[bytes, bytes], list[int]] = {}
+    for k, model in enumerate(contacts):
+        kinds.setdefault((model.surface.tobytes(), model.patch.tobytes()), []).append(k)
+    for members in kinds.values():
+        if len(members) < 2:
+            continue
+        values = np.array([np.concatenate([contacts[k].points.ravel(),
+                                           contacts[k].normals.ravel()]) for k in members])
+        same = np.abs(values[:, None, :] - values[None, :, :]).max(axis=2, initial=0.0) \
+            <= _SAME_CONTACTS
+        members = np.array(members)
+        for i in range(1, len(members)):
+            earlier = np.flatnonzero(same[i, :i] & (first[members[:i]] == members[:i]))
+            if earlier.size:
+                first[members[i]] = members[earlier[0]]
+    return first
 
 
 @total_ordering
@@ -368,6 +415,8 @@ class _HigherMarginFirst:
 
     def _compare(self, other: _HigherMarginFirst) -> int:
         """-1, 0 or 1 as this held margin is below, equal to or above the other's."""
+        if self.quality is other.quality:  # one record (grasps with the same contacts)
+            return 0
         while True:
             low, high, known = self._bounds()
             other_low, other_high, other_known = other._bounds()
@@ -378,9 +427,9 @@ class _HigherMarginFirst:
             if other_high + _MARGIN_SEPARATION <= low:
                 return 1
             if not known and (other_known or high - low >= other_high - other_low):
-                self.quality._refine_margin(other_low, other_high)
+                self.quality._refine_margin()
             else:
-                other.quality._refine_margin(low, high)
+                other.quality._refine_margin()
 
     def __eq__(self, other) -> bool:
         return self._compare(other) == 0
@@ -404,10 +453,10 @@ class _HigherEpsilonFirst:
         return 0.0 if self.quality is None else self.quality.epsilon
 
     def __eq__(self, other) -> bool:
-        return self._epsilon() == other._epsilon()
+        return self.quality is other.quality or self._epsilon() == other._epsilon()
 
     def __lt__(self, other) -> bool:
-        return self._epsilon() > other._epsilon()
+        return self.quality is not other.quality and self._epsilon() > other._epsilon()
 
 
 def quality_rank_key(quality: GraspQuality | None, mean_distance: float) -> tuple:
