@@ -247,6 +247,8 @@ def main() -> None:
     parser.add_argument("--every-valid", action="store_true",
                         help="also simulate every valid grasp of each quality plan")
     parser.add_argument("--seed", type=int, default=SEED, help="seed of every plan")
+    parser.add_argument("--no-centring", action="store_true",
+                        help="plan with centring=False: grasps where ISF and the repair left them")
     parser.add_argument("--com-bias", type=float, default=None, metavar="BETA",
                         help="plan with CentreOfMassRegret(bias=BETA) instead of the regret sampler")
     parser.add_argument("--finger-force", type=float, default=SimulationSettings().finger_force,
@@ -255,6 +257,8 @@ def main() -> None:
     parser.set_defaults(deadline=0.0)
     args = parser.parse_args()
     PLAN_OPTIONS["seed"] = args.seed
+    if args.no_centring:
+        PLAN_OPTIONS["centring"] = False
     if args.com_bias is not None:
         PLAN_OPTIONS["sampler"] = lambda: CentreOfMassRegret(bias=args.com_bias)
     grippers = args.grippers.split(",")
@@ -325,6 +329,7 @@ def main() -> None:
          for r in rows])
     sampler = ("regret sampler" if args.com_bias is None
                else f"CentreOfMassRegret sampler (bias {args.com_bias})")
+    sampler += ", grasps not centred" if args.no_centring else ", grasps centred"
     text = (f"{SAMPLES} samples, {sampler}, seed {args.seed}, YCB objects at real size; top {TOP} "
             f"grasps of each plan simulated with friction {settings.friction}, "
             f"{settings.mass} kg, finger force {settings.finger_force} N. Outcome letters: "

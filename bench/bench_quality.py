@@ -5,7 +5,8 @@ ways from the same grasps: by quality (``rank="quality"``, the default) and by f
 (the paper's ``rank="fit"``: the same grasps sorted by :meth:`isf.Grasp.sort_key` without their
 quality records). Reported per ranking: the top-1 grasp's epsilon and smallest gravity margin
 (:mod:`isf.quality`, friction 0.5, 0.3 kg, 20 N grip), the top-5 means, and how many of the
-top 5 are distinct poses (TCPs more than 1 cm or 30 degrees apart); the ranking overhead
+top 5 are distinct poses (TCPs more than 1 cm or 30 degrees apart); the centring's share of
+the plan (``stats.centring_time`` over ``stats.total_time``, wall time); the ranking overhead
 (``stats.quality_time`` over the rest of the plan, wall time; and in CPU time: the ranking's
 quality re-measured below, over the plan's CPU time less it) and the time per valid grasp of that
 ranking's quality against computing every metric (epsilon, force closure, every load) of
@@ -95,6 +96,7 @@ def one(gripper, path: Path, samples: int) -> dict:
     ranked, full = per_grasp_times(gripper, obj, by_quality, result.quality)
     cpu_ranking = 1e-3 * ranked * len(by_quality) if by_quality else 0.0
     row = {"valid": result.stats.valid, "overhead": result.stats.quality_time / rest,
+           "centring": result.stats.centring_time / result.stats.total_time,
            "cpu_overhead": cpu_ranking / max(cpu_plan - cpu_ranking, 1e-9),
            "ms_ranked": ranked, "ms_full": full,
            "quality": summary([g.quality for g in by_quality],
@@ -126,7 +128,7 @@ def main() -> None:
         for obj in objects:
             rows[obj] = row = one(gripper, YCB / f"{obj}.obj", args.samples)
             line = [f"{name:14s} {obj:15s} valid {row['valid']:2d} overhead {row['overhead']:5.1%} "
-                    f"(CPU {row['cpu_overhead']:5.1%}) "
+                    f"(CPU {row['cpu_overhead']:5.1%}) centring {row['centring']:5.1%} "
                     f"ms/grasp {row['ms_ranked']:.2f} (every metric {row['ms_full']:.2f})"]
             for kind in ("fit", "quality", "baseline"):
                 if kind in row:
@@ -139,10 +141,12 @@ def main() -> None:
         ranked = [r["ms_ranked"] for r in rows.values()]
         full = [r["ms_full"] for r in rows.values()]
         cpu = [r["cpu_overhead"] for r in rows.values()]
+        centring = [r["centring"] for r in rows.values()]
         print(f"{name}: overhead median {statistics.median(over):.1%} worst {max(over):.1%} "
               f"(CPU time: {statistics.median(cpu):.1%} / {max(cpu):.1%}); "
               f"ms per valid grasp median {np.nanmedian(ranked):.2f} worst {np.nanmax(ranked):.2f} "
-              f"(every metric: {np.nanmedian(full):.2f} / {np.nanmax(full):.2f})")
+              f"(every metric: {np.nanmedian(full):.2f} / {np.nanmax(full):.2f}); centring "
+              f"{statistics.median(centring):.1%} / {max(centring):.1%} of the plan")
         for kind in ("fit", "quality", "baseline"):
             cells = [r[kind] for r in rows.values() if kind in r]
             if cells:

@@ -53,7 +53,7 @@ def measure(gripper, obj, samples: int, mode: _common.Mode, args) -> dict:
     runs, failed = _common.run_repeats(
         lambda seed: _common.plan_once(gripper, obj, samples, seed, batch_size=mode.batch_size,
                                        workers=mode.workers, sampler=paper_sampler(),
-                                       repair_collisions=args.repair),
+                                       repair_collisions=args.repair, centring=args.repair),
         args.repeats, _common.budget_or_none(args), catch=(isf.ISFError,))
     row = _common.median_row(runs, failed, args.repeats)
     print(f"#   {obj.name}, {mode.label}: t_total (s) {_common.timing_cell(row)}, "
@@ -153,7 +153,8 @@ def main() -> None:
     parser = _common.base_parser(__doc__.splitlines()[0], repeats=5, budget=60.0)
     parser.add_argument("--samples", type=int, default=60)
     parser.add_argument("--repair", action="store_true",
-                        help="repair colliding fits (isf.plan's default); without it the paper's Algorithm 3")
+                        help="repair colliding fits and centre valid grasps (isf.plan's defaults); "
+                             "without it the paper's Algorithm 3")
     parser.add_argument("--objects", default=None,
                         help="comma-separated benchmark names (default: "
                              + ",".join(DEFAULT_OBJECTS) + ")")
@@ -186,8 +187,8 @@ def main() -> None:
                 points[name] = obj.n_points
             results[(name, b)] = measure(gripper, obj, args.samples, b, args)
     sequential = "B=1: the paper's sequential loop; " if _common.Mode() in batches else ""
-    repair = ("colliding fits repaired (isf.plan's default)" if args.repair
-              else "no collision repair (the paper's Algorithm 3)")
+    repair = ("colliding fits repaired and valid grasps centred (isf.plan's defaults)"
+              if args.repair else "no collision repair and no centring (the paper's Algorithm 3)")
     note = (f"Gripper `{GRIPPER}`, {args.samples} samples per object, regret sampler with random "
             f"orientations (the paper's), {repair}, objects scaled to a "
             f"{_common.PAPER_GRIPPER_MIDDLE_EXTENT * 1e3:g} mm middle extent and sampled to at "

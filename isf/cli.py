@@ -98,6 +98,9 @@ def _parser() -> argparse.ArgumentParser:
                         "(repeatable; docs/hands.md measures its rows)")
     p.add_argument("--no-repair", action="store_true",
                    help="keep colliding fits as they are (the paper's Algorithm 3)")
+    p.add_argument("--no-centring", action="store_true",
+                   help="keep valid grasps where the fit left them instead of sliding them "
+                        "toward the centre of mass along their contact faces (docs/quality.md)")
     p.add_argument("--units", choices=("m", "cm", "mm"), default="m", help="units of the object file (default m)")
     p.add_argument("--scale", type=float, default=1.0, help="extra scale factor for the object")
     p.add_argument("--table", default=None, metavar="Z|auto",
@@ -526,6 +529,7 @@ def _plan_one(args, index, spec, out, obj, gripper, config, repair, obstacles, b
             result = plan(gripper, obj, samples=args.samples, sampler=sampler,
                           seed=args.seed, batch_size=args.batch_size, workers=args.workers,
                           config=config, obstacles=obstacles, repair_collisions=repair,
+                          centring=not args.no_centring,
                           progress=progress, diversity=args.diversity, rank=args.rank,
                           quality=args.quality_config)
         finally:

@@ -122,7 +122,7 @@ def test_a_repaired_grasp_keeps_the_fits_history(hand, hand_cylinder):
     """The history of a repaired grasp is the fit's: it ends at the pose and joints where the
     same fit ends without the repair, not at the repaired grasp; an unrepaired grasp's history
     ends at the grasp."""
-    kwargs = {"samples": 12, "sampler": "uniform", "seed": 3}
+    kwargs = {"samples": 12, "sampler": "uniform", "seed": 3, "centring": False}
     with_repair = isf.plan(hand, hand_cylinder, **kwargs)
     fits = {g.sample_index: g for g in isf.plan(hand, hand_cylinder, repair_collisions=False,
                                                   **kwargs).grasps}

@@ -8,6 +8,9 @@ import numpy as np
 import pytest
 
 import isf
+from isf.config import FitConfig
+from isf.planning.centring import GraspCentring
+from isf.quality import object_properties
 from isf.repair.clearance import ClearanceRepair, repair_penetration
 
 
@@ -19,8 +22,8 @@ def block():
 
 def _window_reference(gripper, obj, samples, seed, window, repair_config=None):
     """The protocol of ``workers=W`` (``window`` = 1 for W = 1, else ``SAMPLES_PER_WORKER * W``),
-    in one thread, from ``isf.fit``, the collision checker
-    and the repair (with ``repair_config``): proposals in order with at most ``window`` awaiting
+    in one thread, from ``isf.fit``, the collision checker, the repair (with ``repair_config``)
+    and the centring: proposals in order with at most ``window`` awaiting
     their outcome, outcomes reported in order. Returns the grasps by sample index and the number
     of repairs that were kept."""
     sampler = isf.get_sampler("regret")
@@ -28,6 +31,8 @@ def _window_reference(gripper, obj, samples, seed, window, repair_config=None):
     sampler.reset(obj, gripper, rng)
     checker = isf.CollisionChecker(gripper, obj)
     repairer = ClearanceRepair(gripper, obj, repair_config)
+    centring = GraspCentring(gripper, obj, object_properties(obj).center_of_mass, checker,
+                             FitConfig())
     kept_repairs = 0
 
     def evaluate(proposal):
@@ -39,7 +44,8 @@ def _window_reference(gripper, obj, samples, seed, window, repair_config=None):
             again = checker.check(repaired.T_object_gripper, repaired.q)
             if again.collision_free:
                 fit, report, kept_repairs = repaired, again, kept_repairs + 1
-        return fit, report
+        centred = centring.centre(fit, report)
+        return centred.result, centred.report
 
     pending, grasps, proposed = deque(), {}, 0
     while pending or proposed < samples:
@@ -69,6 +75,7 @@ def test_workers_give_the_window_protocol_grasps(hand, block, workers):
     result = isf.plan(hand, block, samples=samples, seed=2, workers=workers, working_spacing=None)
     assert result.stats.workers == workers and result.stats.samples == samples
     assert sorted(expected) == list(range(samples))
+    assert any(g.centred for g in result.grasps)  # the centring path ran and was used
     _assert_same_grasps(result, expected)
 
 

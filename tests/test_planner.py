@@ -116,7 +116,8 @@ def test_each_sample_is_proposed_fitted_checked_and_observed(paper_gripper, cyli
 
     sampler = Recording()
     result = isf.plan(paper_gripper, cylinder, samples=5, seed=2, sampler=sampler,
-                      batch_size=batch_size, repair_collisions=False, working_spacing=None)
+                      batch_size=batch_size, repair_collisions=False, centring=False,
+                      working_spacing=None)
     checker = CollisionChecker(paper_gripper, cylinder)
     heard = {o.proposal.record["index"]: o for o in sampler.outcomes}
     assert sorted(heard) == list(range(5))

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Hashable, Sequence
+from typing import NamedTuple
 
 import numpy as np
 
@@ -36,7 +37,8 @@ from . import engine_kernel as kernel
 from ._finger_step import FingerStepQP
 from ._ipfo import answer_requests, ipfo_parameters
 
-__all__ = ["LockstepFitter", "fit_parameters", "gripper_arrays", "score_fit"]
+__all__ = ["LockstepFitter", "PoseScore", "PoseScorer", "fit_parameters", "gripper_arrays",
+           "score_fit"]
 
 _STATUS = {kernel.CONVERGED: FitStatus.CONVERGED, kernel.MAX_ITERATIONS: FitStatus.MAX_ITERATIONS,
            kernel.LOST_CONTACT: FitStatus.LOST_CONTACT}
@@ -223,6 +225,50 @@ def score_fit(gripper: Gripper, obj: ObjectSurface, T: np.ndarray, q: np.ndarray
     T, q = np.array(T, dtype=float), np.array(q, dtype=float)
     return _scored(gripper, obj, config, gripper_arrays(gripper, 1), T, q, links.rotations,
                    links.positions, last, status, history, elapsed)
+
+
+class PoseScore(NamedTuple):
+    """What :class:`PoseScorer` returns for a pose: the two figures a :class:`FitResult` of it
+    would give.
+
+    Attributes:
+        mean_distance: mean absolute point-to-plane distance of the matched pairs, m (inf: none).
+        surface_contact: per contact surface (in ``Gripper.surfaces`` order), the fraction of
+            its points within ``contact_distance`` of the object, (S,).
+    """
+
+    mean_distance: float
+    surface_contact: np.ndarray
+
+
+class PoseScorer:
+    """Scores many palm poses of a gripper at fixed joints on one object as :func:`score_fit`
+    does (every contact point matched afresh), with the set-up done once and no
+    :class:`FitResult` built: for searches that try many poses and keep one.
+
+    Args:
+        gripper, obj, config: the gripper, the object surface and the fit parameters.
+        q: the joints, (n_joints,).
+    """
+
+    def __init__(self, gripper: Gripper, obj: ObjectSurface, config: FitConfig, q: np.ndarray):
+        links = gripper.link_kinematics(np.asarray(q, dtype=float))
+        self._links = (links.rotations, links.positions)
+        self._grip = gripper_arrays(gripper, 1)
+        self._object = kernel.ObjectArrays(obj.points, obj.normals, obj.search.tree)
+        self._parameters = fit_parameters(config)
+        self._alpha = float(config.normal_weight)
+        self._last = np.full(gripper.n_points, -1, np.int64)
+        self._surface = gripper.point_surface
+        self._counts = np.bincount(self._surface, minlength=len(gripper.surfaces))
+
+    def __call__(self, T_object_gripper: np.ndarray) -> PoseScore:
+        """The score of palm pose ``T_object_gripper`` (4, 4), object frame."""
+        score = kernel.score_state(np.asarray(T_object_gripper, dtype=float), *self._links,
+                                   self._grip, self._object, self._parameters, self._alpha,
+                                   self._last)
+        touching = np.bincount(self._surface, weights=score.touching, minlength=len(self._counts))
+        return PoseScore(float(score.mean_distance), touching / self._counts)
 
 
 def _scored(gripper: Gripper, obj: ObjectSurface, config: FitConfig, grip: kernel.GripperArrays,

@@ -1,7 +1,9 @@
-"""What happens to a sample after its proposal: the fit, the collision check, the repair.
+"""What happens to a sample after its proposal: the fit, the collision check, the repair, the
+centring.
 
 :class:`SampleJudge` checks a fitted grasp and, when it collides, repairs it once and checks it
-again; :class:`SampleWorker` adds the fit. A judge and a worker keep state between calls (the
+again; a valid grasp is then slid toward the centre of mass (:mod:`isf.planning.centring`);
+:class:`SampleWorker` adds the fit. A judge and a worker keep state between calls (the
 collision checker's and the fitter's scratch), so a thread must not share one, while everything
 they are built from (gripper, object, the memoised collision and repair set-up) is only read.
 
@@ -33,16 +35,19 @@ from ..object.surface import ObjectSurface
 from ..repair.clearance import ClearanceRepair, RepairConfig, repair_penetration
 from ..result import FitResult
 from ..samplers import Proposal
+from .centring import CentringConfig, GraspCentring
 
 __all__ = ["Judged", "LockstepEvaluations", "SampleJudge", "SampleWorker", "ThreadedEvaluations"]
 
 
 class Judged(NamedTuple):
-    """A judged fit: the grasp kept, its collision report, and whether it is the repair's."""
+    """A judged fit: the grasp kept, its collision report, whether it is the repair's, and
+    whether it was slid toward the centre of mass (:mod:`isf.planning.centring`)."""
 
     result: FitResult
     report: CollisionReport
     repaired: bool
+    centred: bool = False
 
 
 class SampleJudge:
@@ -57,26 +62,51 @@ class SampleJudge:
         repair: repair colliding grasps (:func:`isf.repair.clearance.repair_penetration`): True with
             the default :class:`isf.RepairConfig`, or the repair parameters to use;
             False for no repair.
+        centring: slide valid grasps toward ``center_of_mass``
+            (:class:`isf.planning.centring.GraspCentring`) with these parameters; None for no
+            centring.
+        center_of_mass: the object's centre of mass, object frame, (3,), metres (needed with
+            ``centring``).
 
     Attributes:
-        fit_time: seconds spent repairing (the repair is fitting work), summed over calls.
-        collision_time: seconds spent in collision checks, summed over calls.
+        fit_time: seconds spent repairing and centring (fitting work), summed over calls.
+        centring_time: the part of ``fit_time`` spent centring, seconds.
+        collision_time: seconds spent in collision checks, summed over calls (the centring's
+            are in ``centring_time``).
     """
 
     def __init__(self, gripper: Gripper, obj: ObjectSurface, config: FitConfig, *,
                  obstacles: Sequence[Plane] = (), tolerance: float = 0.002,
-                 hidden: HiddenRegion | None = None, repair: bool | RepairConfig = True):
+                 hidden: HiddenRegion | None = None, repair: bool | RepairConfig = True,
+                 centring: CentringConfig | None = None, center_of_mass: np.ndarray | None = None):
         self.gripper, self.obj, self.config = gripper, obj, config
         self.checker = CollisionChecker(gripper, obj, obstacles=obstacles, tolerance=tolerance,
                                         hidden=hidden)
         self.repairer = None if repair is False else ClearanceRepair(
             gripper, obj, repair if isinstance(repair, RepairConfig) else None, obstacles=obstacles,
             hidden=hidden)
-        self.fit_time = self.collision_time = 0.0
+        self.centring = None if centring is None else GraspCentring(
+            gripper, obj, center_of_mass, self.checker, config, centring)
+        self.fit_time = self.collision_time = self.centring_time = 0.0
 
     def judge(self, result: FitResult) -> Judged:
         """The grasp to keep for a fit and its collision report: the fit itself, or its repair
-        when the fit collides and the repaired grasp does not."""
+        when the fit collides and the repaired grasp does not; a valid grasp slid toward the
+        centre of mass when the judge centres."""
+        judged = self._checked(result)
+        if self.centring is None:
+            return judged
+        t0 = time.perf_counter()
+        centred = self.centring.centre(judged.result, judged.report)
+        spent = time.perf_counter() - t0
+        self.fit_time += spent
+        self.centring_time += spent
+        if centred.shift == 0.0:
+            return judged
+        return judged._replace(result=centred.result, report=centred.report, centred=True)
+
+    def _checked(self, result: FitResult) -> Judged:
+        """The fit or its repair, with its collision report (see :meth:`judge`)."""
         t0 = time.perf_counter()
         report = self.checker.check(result.T_object_gripper, result.q)
         self.collision_time += time.perf_counter() - t0
@@ -120,10 +150,8 @@ class SampleWorker(SampleJudge):
         return self.judge(finished[0][1])
 
 
-Evaluated = tuple[Hashable, Proposal, FitResult, CollisionReport, bool]
-"""A finished sample: its key, its proposal and :class:`Judged`'s three fields."""
-"""A sample back from an evaluator: its index, its proposal, the grasp kept and its collision
-report."""
+Evaluated = tuple[Hashable, Proposal, FitResult, CollisionReport, bool, bool]
+"""A finished sample: its key, its proposal and :class:`Judged`'s four fields."""
 
 
 class LockstepEvaluations:

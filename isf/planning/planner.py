@@ -36,6 +36,11 @@ are pulled back onto the object, and the repaired grasp replaces the fit when th
 finds it collision-free. Multi-fingered hands need this: ISF fits only the tagged fingertip
 surfaces, and the links behind them can end inside the object.
 
+A valid grasp (collision-free, every contact surface touching) is then slid toward the object's
+centre of mass along the directions its fit leaves free (``centring``, on by default;
+:mod:`isf.planning.centring`): a flat pad fits a flat face equally well anywhere on it, and a
+grip near the centre of mass resists the object's weight best. Scenes are not centred.
+
 Ranking: collision-free grasps first, then grasps whose every contact surface
 touches the object, then (on a scene) grasps that rest on one piece of the scene's surface
 rather than on several (:mod:`isf.scene.segments`), then (on a scene) the grasps settled within
@@ -83,11 +88,12 @@ from ..quality.grasp_quality import (
 )
 from ..repair.clearance import RepairConfig
 from ..result import FitResult, FitStatus
-from ..samplers import Outcome, Proposal, Sampler, get_sampler
+from ..samplers import NO_CONTACT_ERROR, Outcome, Proposal, Sampler, get_sampler
 from ..scene.loading import Scene
 from ..scene.settle import Settler
 from ._evaluation import LockstepEvaluations, SampleJudge, SampleWorker, ThreadedEvaluations
 from ._working_surface import resolve_spacing, working_surface
+from .centring import CentringConfig
 from .diversity import DEFAULT_DIVERSITY, Diversity, distinct_first, symmetry_rotations
 from .span import warn_if_outside_span
 
@@ -100,10 +106,6 @@ BATCH_SIZE = 1
 SAMPLES_PER_WORKER = 2
 """Samples :func:`plan` keeps in flight per worker thread when ``workers > 1`` (see the module
 docstring)."""
-
-NO_CONTACT_ERROR = 0.05
-"""Error reported to samplers for a fit where some contact surface does not touch the object
-(or, on a scene, the contact surfaces rest on several pieces of it), metres."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -132,6 +134,9 @@ class Grasp:
             local scatter margin) is within the collision tolerance, False when it is not (it
             ranks after the settled grasps within it, before the unsettled ones); None
             otherwise.
+        centred: True when the grasp was slid toward the centre of mass after its fit (and
+            repair) (:mod:`isf.planning.centring`): then ``fit`` is the slid grasp, whose
+            ``history`` ends before the slide.
         duplicate_of: the rank (from 1) of the better grasp this one repeats (within the
             run's :class:`isf.planning.diversity.Diversity`), or None for a distinct grasp.
         quality: what its contacts resist (:func:`isf.quality.grasp_quality.grasp_quality`), computed for
@@ -148,6 +153,7 @@ class Grasp:
     duplicate_of: int | None = None
     quality: GraspQuality | None = None
     within_bound: bool | None = None
+    centred: bool = False
 
     @property
     def T_object_gripper(self) -> np.ndarray:
@@ -224,6 +230,8 @@ class PlanStats:
         workers: threads that evaluated samples (see :func:`plan`).
         quality_time: time spent computing the valid grasps' quality and sorting by it, seconds
             (part of ``total_time``; 0 with ``rank="fit"``).
+        centring_time: time spent sliding valid grasps toward the centre of mass, seconds
+            (part of ``fit_time``; 0 without centring).
     """
 
     samples: int
@@ -238,6 +246,7 @@ class PlanStats:
     surface_points: int = 0
     workers: int = 1
     quality_time: float = 0.0
+    centring_time: float = 0.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -261,6 +270,8 @@ class PlanResult:
         rank: how the grasps were ranked: ``"quality"`` or ``"fit"`` (see :func:`plan`).
         quality: the :class:`isf.quality.grasp_quality.QualityConfig` of the quality ranking; None with
             ``rank="fit"``.
+        centring: the centring's parameters (:mod:`isf.planning.centring`); None when the run
+            did not centre its grasps.
     """
 
     grasps: tuple[Grasp, ...]
@@ -276,6 +287,7 @@ class PlanResult:
     gripper_model: Gripper | None = None
     rank: str = "fit"
     quality: QualityConfig | None = None
+    centring: CentringConfig | None = None
 
     @property
     def best(self) -> Grasp | None:
@@ -340,7 +352,7 @@ MAX_WORKERS = 256
 
 
 def _check_arguments(samples, batch_size, workers, repair_collisions, seed=None,
-                     config=None) -> None:
+                     config=None, centring=True) -> None:
     """Raise InvalidInputError for the arguments of :func:`plan` it rejects (see there)."""
     from ..exceptions import InvalidInputError
 
@@ -366,6 +378,10 @@ def _check_arguments(samples, batch_size, workers, repair_collisions, seed=None,
         raise InvalidInputError(
             f"repair_collisions must be True, False or an isf.RepairConfig, got "
             f"{type(repair_collisions).__name__}; pass e.g. isf.RepairConfig(iterations=10)")
+    if not isinstance(centring, (bool, CentringConfig)):
+        raise InvalidInputError(
+            f"centring must be True, False or an isf.planning.centring.CentringConfig, got "
+            f"{type(centring).__name__}; pass e.g. CentringConfig(error_slack=0.001)")
 
 
 def plan(
@@ -386,6 +402,7 @@ def plan(
     diversity: Diversity | None = DEFAULT_DIVERSITY,
     rank: str = "quality",
     quality: QualityConfig | None = None,
+    centring: bool | CentringConfig = True,
 ) -> PlanResult:
     """Plan grasps of an object with a gripper (Algorithm 3): propose, fit, check, observe.
 
@@ -427,6 +444,13 @@ def plan(
             ranking by fitting error (see the module docstring).
         quality: the contact model and metric parameters of ``rank="quality"`` (friction 0.5
             by default; its ``contact_distance`` is ``config.contact_distance``).
+        centring: slide each valid grasp toward the object's centre of mass along the
+            directions its fit leaves free, and keep the slid grasp when it stays
+            collision-free and in contact (:mod:`isf.planning.centring`; its time counts as
+            fit time). True: the default :class:`isf.planning.centring.CentringConfig`, or
+            the parameters to use; False keeps the grasps where ISF and the repair left them
+            (with ``repair_collisions=False``: the paper's Algorithm 3). Plans on a scene are
+            not centred.
 
     Returns:
         the ranked :class:`PlanResult`.
@@ -436,7 +460,8 @@ def plan(
             integer, ``samples`` or ``workers`` is above its limit, ``seed`` is neither None
             nor an integer >= 0, ``config`` is not a
             :class:`FitConfig`, both ``batch_size`` and ``workers`` exceed 1, ``repair_collisions`` is
-            neither a bool nor a :class:`isf.RepairConfig`,
+            neither a bool nor a :class:`isf.RepairConfig`, ``centring`` is neither a bool
+            nor a :class:`isf.planning.centring.CentringConfig`,
             ``working_spacing`` is neither "auto", None nor a spacing > 0, or the
             sampler proposed an invalid pose or joint vector.
         GripperDescriptionError, ObjectLoadError, SamplerNotFound: bad gripper, object or sampler.
@@ -445,7 +470,7 @@ def plan(
     from ..object.loading import load_object
 
     started = time.perf_counter()
-    _check_arguments(samples, batch_size, workers, repair_collisions, seed, config)
+    _check_arguments(samples, batch_size, workers, repair_collisions, seed, config, centring)
     if diversity is not None and not isinstance(diversity, Diversity):
         from ..exceptions import InvalidInputError
 
@@ -466,13 +491,16 @@ def plan(
     sampler.reset(obj, gripper, rng)  # line 2: the sampler's state (centres, regret, trials)
     options = dict(obstacles=obstacles, tolerance=collision_tolerance, repair=repair_collisions,
                    hidden=None if scene is None else scene.unseen)
+    if centring is not False and scene is None:
+        options.update(centring=CentringConfig() if centring is True else centring,
+                       center_of_mass=object_properties(obj).center_of_mass)
     settler = None if scene is None else Settler(gripper, obj, scene, config, obstacles=obstacles,
                                                  tolerance=collision_tolerance)
 
     grasps: list[Grasp] = []
 
     def record(index: int, proposal: Proposal, result: FitResult, report: CollisionReport,
-               repaired: bool) -> Outcome:
+               repaired: bool, centred: bool) -> Outcome:
         """Keep a sample's grasp and return its outcome for the sampler."""
         settled = within_bound = None
         if settler is not None:
@@ -480,13 +508,14 @@ def plan(
         pieces = None if scene is None else scene.segments.touched(
             gripper, result.T_object_gripper, result.q, config.contact_distance)
         grasp = Grasp(result, report, dict(proposal.record), index, pieces, repaired, settled,
-                      within_bound=within_bound)
+                      within_bound=within_bound, centred=centred)
         grasps.append(grasp)
         if progress is not None:
             progress(len(grasps), samples, grasp)
         touching = grasp.in_contact and grasp.one_piece
         error = result.mean_distance if touching else NO_CONTACT_ERROR
-        return Outcome(proposal, error=error, collision_free=report.collision_free)
+        return Outcome(proposal, error=error, collision_free=report.collision_free,
+                       valid=grasp.valid)
 
     if workers == 1:
         evaluations = LockstepEvaluations(LockstepFitter(gripper, obj, config),
@@ -532,10 +561,10 @@ def plan(
         total_time=total, time_per_collision_free=total / n_free if n_free else float("inf"),
         fit_time=fit_time, collision_time=collision_time, setup_time=setup_time,
         batch_size=int(batch_size), surface_points=obj.n_points, workers=int(workers),
-        quality_time=quality_time,
+        quality_time=quality_time, centring_time=sum(j.centring_time for j in judges),
     )
     repairer = judges[0].repairer  # the parameters the run repaired with, as the judges took them
     return PlanResult(tuple(grasps), stats, gripper.name, obj.name, sampler.name, seed, config,
                       None if repairer is None else repairer.config, scene, diversity, gripper,
-                      rank, quality)
+                      rank, quality, options.get("centring"))
 

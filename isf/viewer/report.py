@@ -157,6 +157,7 @@ def report_data(plan: PlanFile, sources: PlanSources, meshes: GripperMeshes,
         rows.append({
             "rank": g["rank"], "valid": g.get("valid"), "collision_free": g["collision_free"],
             "status": g["status"], "iterations": g["iterations"], "repaired": g.get("repaired"),
+            "centred": g.get("centred"),
             "mean_distance": error.get("mean_distance"),
             "clearance": g.get("clearance"), "penetration": g.get("penetration"),
             "colliding_links": g.get("colliding_links", []),
