@@ -201,7 +201,9 @@ def plan_once(gripper, obj, samples: int, seed: int, config=None, batch_size: in
         repair_collisions: passed to ``isf.plan`` (None: its default, on; False: the paper's
             Algorithm 3 without the collision repair; an ``isf.RepairConfig``: the repair with
             those parameters).
-        **plan_kwargs: further keyword arguments of ``isf.plan`` (e.g. ``working_spacing``).
+        **plan_kwargs: further keyword arguments of ``isf.plan`` (e.g. ``working_spacing``);
+            ``rank`` defaults to ``"fit"`` and ``centring`` to False, as the speed figures of
+            docs/benchmarks.md were measured (pass them for ``isf.plan``'s defaults).
 
     Returns:
         a dict of floats: ``t_total`` (``PlanStats.total_time``, s), ``cpu`` (process time around
@@ -214,7 +216,7 @@ def plan_once(gripper, obj, samples: int, seed: int, config=None, batch_size: in
     """
     import isf
 
-    kwargs = dict(plan_kwargs)
+    kwargs = {"rank": "fit", "centring": False, **plan_kwargs}
     if batch_size is not None:
         kwargs["batch_size"] = batch_size
     if repair_collisions is not None:

@@ -21,6 +21,7 @@ __version__ = "0.1.0"
 _SOURCES = {  # each public name -> the module (relative to isf) that defines it
     "AssetFetchError": "exceptions",
     "CameraIntrinsics": "scene",
+    "CentringConfig": "planning.centring",
     "CollisionChecker": "collision.checker",
     "CollisionReport": "collision.checker",
     "ConfigError": "exceptions",

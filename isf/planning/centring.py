@@ -11,19 +11,19 @@ surface touching) with its joints fixed:
 1. **Free directions.** With the contact normals ``n_i`` of every contact point (object frame),
    a translation ``t`` of the gripper changes the point-to-plane distances by ``n_i . t``; the
    eigenvectors of ``M = mean(n_i n_i^T)`` whose eigenvalue is below
-   :attr:`CentringConfig.free_ratio` times the largest are directions the fit is (nearly)
+   :attr:`isf.CentringConfig.free_ratio` times the largest are directions the fit is (nearly)
    indifferent to: the plane of a parallel gripper's pads, the axis of a can between them.
 2. **The move.** The offset from the contact centre (the mean of the contact surfaces'
    centres) to the centre of mass (:func:`isf.quality.grasp_quality.object_properties`),
-   projected on the free directions; tried at each of :attr:`CentringConfig.fractions` of its
+   projected on the free directions; tried at each of :attr:`isf.CentringConfig.fractions` of its
    length, then along each free direction alone at the same fractions (a move that leaves a
    curved face one way may keep it the other).
 3. **The check.** The first move whose state the plan's collision check finds collision-free,
-   whose every contact surface still touches with at least :attr:`CentringConfig.contact_keep`
+   whose every contact surface still touches with at least :attr:`isf.CentringConfig.contact_keep`
    of the fit's smallest contact fraction, and whose mean point-to-plane distance (rescored:
    :func:`isf.fitting.engine.score_fit`) exceeds the fit's by at most
-   :attr:`CentringConfig.error_slack` is kept; the collision check bounds how deep the palm goes.
-   Moves shorter than :attr:`CentringConfig.min_move` are not tried. When no move passes, the
+   :attr:`isf.CentringConfig.error_slack` is kept; the collision check bounds how deep the palm goes.
+   Moves shorter than :attr:`isf.CentringConfig.min_move` are not tried. When no move passes, the
    grasp stays as fitted.
 
 The planner centres the grasps of plans on objects (:func:`isf.plan`'s ``centring``); a scene
@@ -52,7 +52,8 @@ __all__ = ["Centred", "CentringConfig", "GraspCentring", "free_directions"]
 
 @dataclass(frozen=True, kw_only=True)
 class CentringConfig:
-    """Parameters of :class:`GraspCentring` (SI units; see the module docstring).
+    """Parameters of the centring of :func:`isf.plan` (``centring=``), the slide of each valid
+    grasp toward the centre of mass (:mod:`isf.planning.centring`), SI units.
 
     Attributes:
         fractions: fractions of the move to the centre of mass tried, in order (each in
@@ -115,7 +116,7 @@ class GraspCentring:
         center_of_mass: the object's centre of mass, object frame, (3,), metres.
         checker: the plan's collision check (its obstacles and tolerance).
         fit_config: the fit parameters (for the rescoring of a slid state).
-        config: the centring parameters; default :class:`CentringConfig()`.
+        config: the centring parameters; default ``isf.CentringConfig()``.
     """
 
     def __init__(self, gripper: Gripper, obj: ObjectSurface, center_of_mass: np.ndarray,

@@ -380,7 +380,7 @@ def _check_arguments(samples, batch_size, workers, repair_collisions, seed=None,
             f"{type(repair_collisions).__name__}; pass e.g. isf.RepairConfig(iterations=10)")
     if not isinstance(centring, (bool, CentringConfig)):
         raise InvalidInputError(
-            f"centring must be True, False or an isf.planning.centring.CentringConfig, got "
+            f"centring must be True, False or an isf.CentringConfig, got "
             f"{type(centring).__name__}; pass e.g. CentringConfig(error_slack=0.001)")
 
 
@@ -447,7 +447,7 @@ def plan(
         centring: slide each valid grasp toward the object's centre of mass along the
             directions its fit leaves free, and keep the slid grasp when it stays
             collision-free and in contact (:mod:`isf.planning.centring`; its time counts as
-            fit time). True: the default :class:`isf.planning.centring.CentringConfig`, or
+            fit time). True: the default :class:`isf.CentringConfig`, or
             the parameters to use; False keeps the grasps where ISF and the repair left them
             (with ``repair_collisions=False``: the paper's Algorithm 3). Plans on a scene are
             not centred.
@@ -461,7 +461,7 @@ def plan(
             nor an integer >= 0, ``config`` is not a
             :class:`FitConfig`, both ``batch_size`` and ``workers`` exceed 1, ``repair_collisions`` is
             neither a bool nor a :class:`isf.RepairConfig`, ``centring`` is neither a bool
-            nor a :class:`isf.planning.centring.CentringConfig`,
+            nor a :class:`isf.CentringConfig`,
             ``working_spacing`` is neither "auto", None nor a spacing > 0, or the
             sampler proposed an invalid pose or joint vector.
         GripperDescriptionError, ObjectLoadError, SamplerNotFound: bad gripper, object or sampler.
