@@ -81,6 +81,7 @@ from ..gripper.model import Gripper
 from ..object.surface import ObjectSurface
 from ..quality.grasp_quality import (
     GraspQuality,
+    ObjectProperties,
     QualityConfig,
     grasps_quality,
     object_properties,
@@ -327,13 +328,15 @@ def _check_ranking(rank, quality) -> None:
 
 
 def _with_quality(grasps: list[Grasp], gripper: Gripper, obj: ObjectSurface,
-                  config: QualityConfig) -> list[Grasp]:
-    """``grasps`` with the :attr:`Grasp.quality` of each valid one (the others keep None)."""
+                  config: QualityConfig, properties: ObjectProperties | None) -> list[Grasp]:
+    """``grasps`` with the :attr:`Grasp.quality` of each valid one (the others keep None);
+    ``properties``: the object's, or None to compute them when a grasp is valid."""
     if not any(g.valid for g in grasps):
         return grasps
     valid = [g for g in grasps if g.valid]
+    properties = object_properties(obj) if properties is None else properties
     qualities = iter(grasps_quality(gripper, obj, np.array([g.T_object_gripper for g in valid]),
-                                    np.array([g.q for g in valid]), config, object_properties(obj)))
+                                    np.array([g.q for g in valid]), config, properties))
     return [replace(g, quality=next(qualities)) if g.valid else g for g in grasps]
 
 
@@ -491,9 +494,11 @@ def plan(
     sampler.reset(obj, gripper, rng)  # line 2: the sampler's state (centres, regret, trials)
     options = dict(obstacles=obstacles, tolerance=collision_tolerance, repair=repair_collisions,
                    hidden=None if scene is None else scene.unseen)
+    properties = None  # the object's centre of mass and radius, computed once when needed
     if centring is not False and scene is None:
+        properties = object_properties(obj)
         options.update(centring=CentringConfig() if centring is True else centring,
-                       center_of_mass=object_properties(obj).center_of_mass)
+                       center_of_mass=properties.center_of_mass)
     settler = None if scene is None else Settler(gripper, obj, scene, config, obstacles=obstacles,
                                                  tolerance=collision_tolerance)
 
@@ -546,7 +551,7 @@ def plan(
         base = QualityConfig() if quality is None else quality
         quality = replace(base, contact_model=replace(base.contact_model,
                                                       contact_distance=config.contact_distance))
-        grasps = _with_quality(grasps, gripper, obj, quality)
+        grasps = _with_quality(grasps, gripper, obj, quality, properties)
     else:
         quality = None
     grasps.sort(key=Grasp.sort_key)  # a tie of the quality ranking reads epsilon here
