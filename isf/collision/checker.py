@@ -153,8 +153,8 @@ def checked_state(gripper: Gripper, T_object_gripper, q) -> tuple[np.ndarray, np
     return T, q
 
 
-def _bvh(vertices: np.ndarray, faces: np.ndarray) -> coal.BVHModelOBBRSS:
-    """A coal BVH of a triangle mesh."""
+def mesh_bvh(vertices: np.ndarray, faces: np.ndarray) -> coal.BVHModelOBBRSS:
+    """A coal BVH of a triangle mesh: vertices (V, 3), faces (F, 3)."""
     model = coal.BVHModelOBBRSS()
     model.beginModel(len(faces), len(vertices))
     model.addVertices(np.ascontiguousarray(vertices, dtype=np.float64))
@@ -168,7 +168,8 @@ def object_bvh(obj: ObjectSurface) -> coal.BVHModelOBBRSS:
     :func:`isf.collision.surface_distance.mesh_memo`)."""
     memo = mesh_memo(obj)
     if "bvh" not in memo:
-        memo["bvh"] = _bvh(np.asarray(obj.mesh_vertices, float), np.asarray(obj.mesh_faces, np.int64))
+        memo["bvh"] = mesh_bvh(np.asarray(obj.mesh_vertices, float),
+                               np.asarray(obj.mesh_faces, np.int64))
     return memo["bvh"]
 
 

@@ -27,6 +27,9 @@ def add_parser(subparsers) -> None:
     p.add_argument("--finger-force", type=float, default=20.0, metavar="N",
                    help="normal force each contact surface can press with, N: a parallel "
                         "gripper squeezes with it from each jaw (default 20)")
+    p.add_argument("--part-tolerance", type=float, default=0.001, metavar="M",
+                   help="how far the simulated convex parts may stand off the object's and the "
+                        "gripper's meshes, m: smaller is more faithful and slower (default 0.001)")
     p.add_argument("--gripper", "-g", default=None,
                    help="bundled gripper name or URDF path (default: the plan's)")
     p.add_argument("--object", "-o", default=None,
@@ -50,7 +53,8 @@ def run(args) -> int:
     if not isinstance(plan, dict) or "grasps" not in plan:
         raise InvalidInputError(f"{str(path)!r} is not a plan file written by 'isf plan'")
     settings = SimulationSettings(friction=args.friction, mass=args.mass,
-                                  finger_force=args.finger_force)
+                                  finger_force=args.finger_force,
+                                  part_tolerance=args.part_tolerance)
     result = validate_plan(plan, top=args.top, settings=settings, gripper=args.gripper,
                            object_spec=args.object)
     out = Path(args.out) if args.out else path

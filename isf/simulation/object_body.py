@@ -1,13 +1,20 @@
 """The object as a rigid body: convex parts for contact, mass, centre of mass and inertia.
 
-MuJoCo collides convex geometry only (it takes the convex hull of every mesh). A mesh whose
-volume fills its convex hull to within ``CONVEX_FILL`` is used as one hull; any other (also a
-gripper's grooved fingertip or open pad surface, :func:`convex_parts`) is split by CoACD
-(Wei et al., "Approximate Convex Decomposition for 3D Meshes with Collision-Aware Concavity
-and Tree Search", SIGGRAPH 2022) into convex parts, in a child process (see
-``_coacd_in_child``), and remembered per mesh for the process's life. Mass properties come from the
-closed mesh with uniform density (the hull's when the mesh is not watertight), scaled to the
-requested mass. Frame: the object's own (mesh) frame, metres.
+MuJoCo collides convex geometry only (it takes the convex hull of every mesh), so where the
+collided geometry stands outside the mesh the simulated object is fatter than the real one and
+a grasp whose pads touch the mesh reads as sunk into it. A closed mesh whose convex hull stands
+off it by at most ``PART_TOLERANCE`` (1 mm) is used as one hull; any other (also a gripper's
+grooved fingertip or open pad surface, :func:`convex_parts`) is split by CoACD (Wei et al.,
+"Approximate Convex Decomposition for 3D Meshes with Collision-Aware Concavity and Tree
+Search", SIGGRAPH 2022) into convex parts, in a child process (see ``_coacd_in_child``).
+CoACD's concavity threshold is relative to the mesh's size (half its largest bounding-box
+side), so it is set from the same tolerance (:func:`coacd_threshold`, no lower than 0.02):
+the parts of a 10 cm object stand off its surface by about 1 mm, those of a 20 cm one by up
+to about 2 mm, not the 5 mm of CoACD's default. Parts are kept
+per mesh for the process's life and on disk under ``<cache>/convex-parts/``
+(:func:`isf.assets.cache_dir`), so a mesh is decomposed once per machine. Mass properties come
+from the closed mesh with uniform density (the hull's when the mesh is not watertight), scaled
+to the requested mass. Frame: the object's own (mesh) frame, metres.
 """
 
 from __future__ import annotations
@@ -19,13 +26,22 @@ import numpy as np
 
 from ..exceptions import InvalidInputError
 
-__all__ = ["CONVEX_FILL", "ObjectBody", "convex_parts", "object_body"]
+__all__ = ["PART_TOLERANCE", "ObjectBody", "coacd_threshold", "convex_parts", "distances_to_mesh",
+           "hull_standoff", "object_body"]
 
-#: Volume / convex-hull volume above which a mesh is simulated as its hull.
-CONVEX_FILL = 0.97
-#: CoACD's concavity threshold (its default is 0.05) and bound on the number of parts.
-COACD_THRESHOLD = 0.05
-COACD_MAX_PARTS = 24
+#: The default distance, m, by which the convex parts may stand off the mesh: a closed mesh
+#: whose hull stands off it by no more is its hull; CoACD's concavity threshold is this over
+#: half the mesh's largest bounding-box side, within ``COACD_THRESHOLD_RANGE``.
+PART_TOLERANCE = 0.001
+#: Spacing (m) of the points on the hull whose distance from the mesh is its standoff.
+HULL_SAMPLE_SPACING = 0.001
+#: The thresholds used, at most CoACD's default (0.05). Below 0.02 its time grows steeply on
+#: scanned objects (minutes for a 21 cm box), so an object larger than 2 * tolerance / 0.02
+#: (10 cm at 1 mm) is decomposed at 0.02: its parts may stand off it by up to about
+#: 0.01 times its largest side (docs/validate.md measures it).
+COACD_THRESHOLD_RANGE = (0.02, 0.05)
+#: Version of the decomposition's settings, part of the disk cache's key.
+_PARTS_FORMAT = "isf-convex-parts/2"
 
 _PARTS_CACHE: dict[str, tuple[tuple[np.ndarray, np.ndarray], ...]] = {}
 
@@ -47,31 +63,115 @@ class ObjectBody:
     inertia: np.ndarray
 
 
-def _convex_parts(mesh) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
-    key = hashlib.sha1(mesh.vertices.tobytes() + mesh.faces.tobytes()).hexdigest()
+def coacd_threshold(vertices: np.ndarray, tolerance: float = PART_TOLERANCE) -> float:
+    """CoACD's concavity threshold for a mesh with vertices (V, 3), m: ``tolerance`` (m) over
+    half the largest side of its bounding box, clipped to ``COACD_THRESHOLD_RANGE``."""
+    half_side = 0.5 * float(np.ptp(np.asarray(vertices, dtype=float), axis=0).max())
+    low, high = COACD_THRESHOLD_RANGE
+    return float(np.clip(tolerance / max(half_side, 1e-9), low, high))
+
+
+def distances_to_mesh(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Exact distance (m) of each point (P, 3) from a triangle mesh (vertices (V, 3) m, faces
+    (F, 3)), by coal, (P,)."""
+    import coal
+
+    from ..collision.checker import mesh_bvh
+
+    bvh = mesh_bvh(vertices, faces)
+    point, at, identity = coal.Sphere(0.0), coal.Transform3s(), coal.Transform3s()
+    request, result = coal.DistanceRequest(), coal.DistanceResult()
+    out = np.empty(len(points))
+    for k, p in enumerate(np.asarray(points, dtype=float)):
+        at.setTranslation(p)
+        result.clear()
+        out[k] = coal.distance(point, at, bvh, identity, request, result)
+    return out
+
+
+def hull_standoff(mesh, hull) -> float:
+    """How far (m) the convex hull of a closed ``trimesh.Trimesh`` stands off it: the largest
+    distance from the mesh (:func:`distances_to_mesh`) of points spread over the hull's faces,
+    every ``HULL_SAMPLE_SPACING`` on average (at least 2000, at most 20000; fixed seed), and of
+    its face centres."""
+    import trimesh
+
+    count = int(np.clip(hull.area / HULL_SAMPLE_SPACING ** 2, 2000, 20000))
+    points = np.concatenate([trimesh.sample.sample_surface(hull, count, seed=0)[0],
+                             np.asarray(hull.triangles_center)])
+    return float(distances_to_mesh(points, mesh.vertices, mesh.faces).max())
+
+
+def _convex_parts(mesh, tolerance: float) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
+    vertices = np.ascontiguousarray(mesh.vertices, dtype=float)
+    faces = np.ascontiguousarray(mesh.faces, dtype=np.int64)
+    threshold = coacd_threshold(vertices, tolerance)
+    key = hashlib.sha1(f"{_PARTS_FORMAT} {tolerance!r} {threshold!r}".encode()
+                       + vertices.tobytes() + faces.tobytes()).hexdigest()
     if key in _PARTS_CACHE:
         return _PARTS_CACHE[key]
     hull = mesh.convex_hull
-    if mesh.is_watertight and mesh.volume >= CONVEX_FILL * hull.volume:
+    if mesh.is_watertight and hull_standoff(mesh, hull) <= tolerance:
         parts = ((np.asarray(hull.vertices), np.asarray(hull.faces)),)
     else:
-        parts = _coacd_in_child(np.asarray(mesh.vertices, dtype=float),
-                                np.asarray(mesh.faces, dtype=np.int64))
+        parts = _stored_parts(key)
+        if parts is None:
+            parts = _coacd_in_child(vertices, faces, threshold, closed=mesh.is_watertight)
+            _store_parts(key, parts)
     _PARTS_CACHE[key] = parts
     return parts
 
 
-def convex_parts(vertices: np.ndarray, faces: np.ndarray) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
+def _parts_file(key: str):
+    from ..assets import cache_dir
+
+    return cache_dir() / "convex-parts" / f"{key}.npz"
+
+
+def _stored_parts(key: str) -> tuple[tuple[np.ndarray, np.ndarray], ...] | None:
+    """The parts stored on disk under ``key``, or None (none stored, or a file that does not
+    read: it is decomposed again and rewritten)."""
+    path = _parts_file(key)
+    try:
+        with np.load(path, allow_pickle=False) as stored:
+            count = len(stored.files) // 2
+            return tuple((stored[f"v{k}"], stored[f"f{k}"]) for k in range(count)) or None
+    except (OSError, ValueError, KeyError):
+        return None
+
+
+def _store_parts(key: str, parts: tuple[tuple[np.ndarray, np.ndarray], ...]) -> None:
+    """Write the parts for later processes (atomically: a reader never sees half a file); a
+    cache that cannot be written is skipped."""
+    import os
+    import tempfile
+
+    path = _parts_file(key)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        handle, temporary = tempfile.mkstemp(dir=path.parent, suffix=".npz.part")
+        with os.fdopen(handle, "wb") as out:
+            np.savez(out, **{f"{name}{k}": array for k, (v, f) in enumerate(parts)
+                             for name, array in (("v", v), ("f", f))})
+        os.replace(temporary, path)
+    except OSError:
+        return
+
+
+def convex_parts(vertices: np.ndarray, faces: np.ndarray, tolerance: float = PART_TOLERANCE
+                 ) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
     """The convex parts MuJoCo collides for a triangle mesh (vertices (V, 3) m, faces (F, 3)): its
-    hull when the mesh is closed and fills ``CONVEX_FILL`` of it, else CoACD's parts (an open
-    sheet, such as a curved pad's surface, becomes thin parts along it, not the slab of its
-    hull). Used for the object and for every collision element of the gripper."""
+    hull when the mesh is closed and the hull stands off it by at most ``tolerance`` (m,
+    :func:`hull_standoff`), else CoACD's parts (an open sheet, such as a curved pad's surface,
+    becomes thin parts along it, not the slab of its hull), standing off the mesh by about
+    ``tolerance`` (:func:`coacd_threshold`). Used for the object and for every collision
+    element of the gripper."""
     import trimesh
 
     mesh = trimesh.Trimesh(np.asarray(vertices, dtype=float), np.asarray(faces, dtype=np.int64),
                            process=True)
     mesh.merge_vertices()
-    return _convex_parts(mesh)
+    return _convex_parts(mesh, tolerance)
 
 
 _COACD_SCRIPT = """
@@ -79,7 +179,8 @@ import sys, numpy as np, coacd
 coacd.set_log_level("error")
 src = np.load(sys.argv[1])
 pieces = coacd.run_coacd(coacd.Mesh(src["vertices"], src["faces"]), threshold=float(sys.argv[3]),
-                         max_convex_hull=int(sys.argv[4]), preprocess_resolution=30,
+                         max_convex_hull=-1, merge=False, preprocess_mode=sys.argv[4],
+                         preprocess_resolution=30,
                          resolution=1000, mcts_iterations=60, mcts_max_depth=2, mcts_nodes=10,
                          seed=0)
 out = {}
@@ -89,8 +190,15 @@ np.savez(sys.argv[2], **out)
 """
 
 
-def _coacd_in_child(vertices: np.ndarray, faces: np.ndarray) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
-    """CoACD's convex parts, computed in a child Python process.
+def _coacd_in_child(vertices: np.ndarray, faces: np.ndarray, threshold: float,
+                    closed: bool) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
+    """CoACD's convex parts at concavity ``threshold``, computed in a child Python process.
+
+    Parts are not merged afterwards: CoACD's merging pass, quadratic in the number of parts,
+    only lowers their count, at about twice the time on scanned objects. A ``closed`` mesh is
+    decomposed as it is: CoACD's manifold preprocessing remeshes on a voxel grid (30 cells
+    along the largest side), which would blur the mesh by more than the tolerance; an open
+    surface (a pad) needs it to become a solid.
 
     CoACD's shared library, once loaded into a process that has not yet parsed a URDF with
     Pinocchio, breaks Pinocchio's URDF parser there (every later ``load_gripper`` fails): the
@@ -105,7 +213,7 @@ def _coacd_in_child(vertices: np.ndarray, faces: np.ndarray) -> tuple[tuple[np.n
         source, target = Path(folder, "mesh.npz"), Path(folder, "parts.npz")
         np.savez(source, vertices=vertices, faces=faces)
         done = subprocess.run([sys.executable, "-c", _COACD_SCRIPT, str(source), str(target),
-                               str(COACD_THRESHOLD), str(COACD_MAX_PARTS)],
+                               repr(threshold), "off" if closed else "auto"],
                               capture_output=True, text=True, check=False)
         if done.returncode != 0 or not target.exists():
             last = (done.stderr.strip().splitlines() or ["no output"])[-1]
@@ -115,8 +223,11 @@ def _coacd_in_child(vertices: np.ndarray, faces: np.ndarray) -> tuple[tuple[np.n
             return tuple((parts[f"v{k}"], parts[f"f{k}"]) for k in range(count))
 
 
-def object_body(vertices: np.ndarray, faces: np.ndarray, mass: float) -> ObjectBody:
-    """The rigid body of a triangle mesh of mass ``mass`` (kg), vertices in metres."""
+def object_body(vertices: np.ndarray, faces: np.ndarray, mass: float,
+                tolerance: float = PART_TOLERANCE) -> ObjectBody:
+    """The rigid body of a triangle mesh of mass ``mass`` (kg), vertices in metres, collided as
+    convex parts within ``tolerance`` (m) of the mesh
+    (:func:`isf.simulation.object_body.convex_parts`)."""
     import trimesh
 
     mesh = trimesh.Trimesh(np.asarray(vertices, dtype=float), np.asarray(faces, dtype=np.int64),
@@ -126,6 +237,6 @@ def object_body(vertices: np.ndarray, faces: np.ndarray, mass: float) -> ObjectB
         raise InvalidInputError("the object mesh encloses no volume: it cannot be simulated")
     solid = mesh if mesh.is_watertight and mesh.volume > 0.0 else mesh.convex_hull
     scale = mass / solid.mass  # trimesh's mass at density 1
-    return ObjectBody(parts=_convex_parts(mesh), mass=float(mass),
+    return ObjectBody(parts=_convex_parts(mesh, tolerance), mass=float(mass),
                       center_of_mass=np.asarray(solid.center_mass, dtype=float),
                       inertia=np.asarray(solid.moment_inertia, dtype=float) * scale)

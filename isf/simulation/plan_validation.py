@@ -37,7 +37,7 @@ class PlanValidation(NamedTuple):
     results: tuple[GraspValidation, ...]
 
 
-def _object(plan: dict, spec: str | None, mass: float) -> ObjectBody:
+def _object(plan: dict, spec: str | None, settings: SimulationSettings) -> ObjectBody:
     if plan.get("scene") is not None:
         raise InvalidInputError("isf validate does not simulate plans on scenes: plan the object's "
                                 "mesh instead (its volume and mass are unknown from camera views)")
@@ -50,7 +50,7 @@ def _object(plan: dict, spec: str | None, mass: float) -> ObjectBody:
     if obj.mesh_vertices is None or obj.mesh_faces is None:
         raise InvalidInputError(f"object {source!r} is a point cloud: isf validate needs a closed "
                                 "mesh (give one with --object)")
-    return object_body(obj.mesh_vertices, obj.mesh_faces, mass)
+    return object_body(obj.mesh_vertices, obj.mesh_faces, settings.mass, settings.part_tolerance)
 
 
 def validate_plan(plan: dict, *, top: int = 5, settings: SimulationSettings | None = None,
@@ -76,7 +76,7 @@ def validate_plan(plan: dict, *, top: int = 5, settings: SimulationSettings | No
     settings = settings or SimulationSettings()
     if not isinstance(gripper, Gripper):
         gripper = load_gripper(gripper or plan["gripper"])
-    body = _object(plan, object_spec, settings.mass)
+    body = _object(plan, object_spec, settings)
     out = dict(plan)
     out["grasps"] = [dict(g) for g in plan["grasps"]]
     out["validation_settings"] = settings.to_dict()

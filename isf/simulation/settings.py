@@ -27,6 +27,9 @@ class SimulationSettings:
         squeeze_revolute: the same for revolute joints, rad.
         penetration_limit: gripper-object penetration at the planned joints above which the
             grasp is ``penetrating`` and not simulated, m.
+        part_tolerance: how far the convex parts MuJoCo collides may stand off the object's and
+            the gripper's meshes, m (:func:`isf.simulation.object_body.convex_parts`): smaller
+            is more faithful, with more parts, slower to make and to simulate.
         eject_distance: object displacement during closing above which it is ``ejected``, m.
         slip_distance: object displacement while held against gravity above which it ``slipped``, m.
         slip_angle: object rotation while held above which it ``slipped``, rad.
@@ -44,6 +47,7 @@ class SimulationSettings:
     squeeze_prismatic: float = 0.005
     squeeze_revolute: float = 0.1
     penetration_limit: float = 0.003
+    part_tolerance: float = 0.001
     eject_distance: float = 0.05
     slip_distance: float = 0.01
     slip_angle: float = 0.2
@@ -56,8 +60,8 @@ class SimulationSettings:
         for name, value in asdict(self).items():
             if value is not None and not value >= 0.0:
                 raise InvalidInputError(f"simulation setting {name}={value} must be >= 0")
-        if self.mass <= 0.0 or self.timestep <= 0.0:
-            raise InvalidInputError("simulation mass and timestep must be > 0")
+        if self.mass <= 0.0 or self.timestep <= 0.0 or self.part_tolerance <= 0.0:
+            raise InvalidInputError("simulation mass, timestep and part_tolerance must be > 0")
 
     def to_dict(self) -> dict:
         """The settings as a JSON-ready dict."""

@@ -188,7 +188,7 @@ def build_world(gripper: Gripper, body: ObjectBody, T_object_gripper: np.ndarray
             mj_body.inertia = [LINK_INERTIA] * 3
             mj_body.gravcomp = 1.0
         for k, g in enumerate(geoms_of.get(link, [])):
-            for j, (v, f) in enumerate(convex_parts(g.vertices, g.faces)):
+            for j, (v, f) in enumerate(convex_parts(g.vertices, g.faces, settings.part_tolerance)):
                 _add_mesh_geom(spec, mj_body, f"g:{link}:{k}:{j}", v, f, settings.friction,
                                (GRIPPER_BITS, OBJECT_BITS))
         for joint in children.get(link, []):
