@@ -20,6 +20,7 @@ to the requested mass. Frame: the object's own (mesh) frame, metres.
 from __future__ import annotations
 
 import hashlib
+import logging
 from dataclasses import dataclass
 
 import numpy as np
@@ -44,6 +45,7 @@ COACD_THRESHOLD_RANGE = (0.02, 0.05)
 _PARTS_FORMAT = "isf-convex-parts/2"
 
 _PARTS_CACHE: dict[str, tuple[tuple[np.ndarray, np.ndarray], ...]] = {}
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True, eq=False)
@@ -116,6 +118,9 @@ def _convex_parts(mesh, tolerance: float) -> tuple[tuple[np.ndarray, np.ndarray]
     else:
         parts = _stored_parts(key)
         if parts is None:
+            log.info("making the convex parts of a %d-face mesh (CoACD, threshold %.3f): "
+                     "tens of seconds for a scanned object, once: they are kept in %s",
+                     len(faces), threshold, _parts_file(key).parent)
             parts = _coacd_in_child(vertices, faces, threshold, closed=mesh.is_watertight)
             _store_parts(key, parts)
     _PARTS_CACHE[key] = parts
