@@ -112,12 +112,14 @@ def _convex_parts(mesh, tolerance: float) -> tuple[tuple[np.ndarray, np.ndarray]
                        + vertices.tobytes() + faces.tobytes()).hexdigest()
     if key in _PARTS_CACHE:
         return _PARTS_CACHE[key]
-    hull = mesh.convex_hull
-    if mesh.is_watertight and hull_standoff(mesh, hull) <= tolerance:
-        parts = ((np.asarray(hull.vertices), np.asarray(hull.faces)),)
-    else:
-        parts = _stored_parts(key)
-        if parts is None:
+    # stored parts exist only for a mesh whose hull was refused: looking them up first spares
+    # a later process the hull test's thousands of exact distances
+    parts = _stored_parts(key)
+    if parts is None:
+        hull = mesh.convex_hull
+        if mesh.is_watertight and hull_standoff(mesh, hull) <= tolerance:
+            parts = ((np.asarray(hull.vertices), np.asarray(hull.faces)),)
+        else:
             log.info("making the convex parts of a %d-face mesh (CoACD, threshold %.3f): "
                      "tens of seconds for a scanned object, once: they are kept in %s",
                      len(faces), threshold, _parts_file(key).parent)
@@ -136,13 +138,17 @@ def _parts_file(key: str):
 def _stored_parts(key: str) -> tuple[tuple[np.ndarray, np.ndarray], ...] | None:
     """The parts stored on disk under ``key``, or None (none stored, or a file that does not
     read: it is decomposed again and rewritten)."""
-    path = _parts_file(key)
     try:
-        with np.load(path, allow_pickle=False) as stored:
-            count = len(stored.files) // 2
-            return tuple((stored[f"v{k}"], stored[f"f{k}"]) for k in range(count)) or None
+        return _read_parts(_parts_file(key)) or None
     except (OSError, ValueError, KeyError):
         return None
+
+
+def _read_parts(path) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
+    """The parts of a file as CoACD's child process and :func:`_store_parts` write them:
+    arrays ``v0, f0, v1, f1, ...``."""
+    with np.load(path, allow_pickle=False) as stored:
+        return tuple((stored[f"v{k}"], stored[f"f{k}"]) for k in range(len(stored.files) // 2))
 
 
 def _store_parts(key: str, parts: tuple[tuple[np.ndarray, np.ndarray], ...]) -> None:
@@ -223,9 +229,7 @@ def _coacd_in_child(vertices: np.ndarray, faces: np.ndarray, threshold: float,
         if done.returncode != 0 or not target.exists():
             last = (done.stderr.strip().splitlines() or ["no output"])[-1]
             raise InvalidInputError(f"the convex decomposition (CoACD) of the object failed: {last}")
-        with np.load(target) as parts:
-            count = len(parts.files) // 2
-            return tuple((parts[f"v{k}"], parts[f"f{k}"]) for k in range(count))
+        return _read_parts(target)
 
 
 def object_body(vertices: np.ndarray, faces: np.ndarray, mass: float,
