@@ -74,9 +74,9 @@ def main() -> None:
         ["object", "seeds"] + [f"collision-free, {b.label}" for b in sizes]
         + [f"{b.label} - {ref.label} (mean; all pairs: +- standard error)" for b in sizes[:-1]]
         + [f"mean fit error (mm), {b.label}" for b in sizes], rows)
-    note = (f"Gripper `{GRIPPER}`, 60 samples, regret sampler with random orientations, no "
-            f"repair, objects as in bench/table1.py; seeds 0..{seeds - 1}; reference {ref.label} (B: samples in "
-            "lockstep in one thread, W: worker threads).")
+    note = (f"Gripper `{GRIPPER}`, 60 samples, regret sampler with random orientations and "
+            f"no starts at the centre of mass, no repair, objects as in bench/table1.py; "
+            f"seeds 0..{seeds - 1}; reference {ref.label} (B: samples in lockstep in one thread, W: worker threads).")
     _common.finish("bandit_delay: collision-free grasps vs delayed feedback, paired by seed",
                    ["### Collision-free grasps vs. batch size and worker threads", note, table], started, header,
                    args.out)

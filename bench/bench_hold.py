@@ -28,9 +28,9 @@ point and ``<isf:closing>`` signs: the flexion joints close, the abduction joint
 size) on each object scaled uniformly so that its smallest principal width is
 ``SCALED_FILL`` of the opening (the same 0.3 kg: only the geometry is scaled).
 
-``--seed N`` plans with another seed (default 0). ``--com-bias BETA`` plans with
-:class:`CentreOfMassRegret` instead of the regret sampler: a start bias toward the centre of
-mass, measured in docs/validate.md (not isf's default).
+``--seed N`` plans with another seed (default 0). ``--com-share S`` plans with
+``RegretSampler(com_share=S)``: ``0`` starts every sample at a cluster centre (the paper's
+Algorithm 3), the default starts every second one at the centre of mass (docs/samplers.md).
 
 With ``--every-valid``, every valid grasp of each ``quality`` plan is simulated too, not only
 the top 5: how many of them hold, by distance of their contacts from the centre of mass, how
@@ -40,7 +40,7 @@ curve), and the best top-1 and top-5 that any ranking of the plan's grasps could
 Run from the repository root:
     python bench/bench_hold.py [--quick] [--grippers paper-parallel,franka-hand]
                                [--objects Banana,MustardBottle] [--raw FILE.json] [--out FILE.md]
-                               [--every-valid] [--seed N] [--com-bias BETA]
+                               [--every-valid] [--seed N] [--com-share S]
 """
 
 from __future__ import annotations
@@ -55,39 +55,17 @@ import inspect
 import json
 import tempfile
 import time
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 import isf
-from isf.quality import object_properties
 from isf.samplers.regret import RegretSampler
 from isf.simulation import SimulationSettings, object_body, validate_grasp
 
 SAMPLES, SEED, TOP, FRICTION = 60, 0, 5, 0.5
 #: what every isf.plan of this script is given besides the gripper and object (set by main)
 PLAN_OPTIONS: dict = {"samples": SAMPLES, "seed": SEED}
-
-
-@dataclass(eq=False, kw_only=True)
-class CentreOfMassRegret(RegretSampler):
-    """The regret sampler with a start bias toward the centre of mass: once every cluster has
-    an outcome, it picks the cluster with the least average regret plus ``bias`` times the
-    distance of the cluster centre from the object's centre of mass
-    (:func:`isf.quality.object_properties`), metres of regret per metre."""
-
-    bias: float = 0.02
-
-    def reset(self, obj, gripper, rng) -> None:
-        super().reset(obj, gripper, rng)
-        self._distance = np.linalg.norm(self.centres - object_properties(obj).center_of_mass,
-                                        axis=1)
-
-    def best_cluster(self) -> int:
-        self._require_reset()
-        score = self.regret + self.bias * self._distance * (self.trials > 0)
-        return int(np.lexsort((np.arange(self.k), self.pending, score))[0])
 
 
 def plan(gripper, obj, **options):
@@ -249,8 +227,8 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=SEED, help="seed of every plan")
     parser.add_argument("--no-centring", action="store_true",
                         help="plan with centring=False: grasps where ISF and the repair left them")
-    parser.add_argument("--com-bias", type=float, default=None, metavar="BETA",
-                        help="plan with CentreOfMassRegret(bias=BETA) instead of the regret sampler")
+    parser.add_argument("--com-share", type=float, default=None, metavar="S",
+                        help="plan with RegretSampler(com_share=S) (default: the sampler's own)")
     parser.add_argument("--finger-force", type=float, default=SimulationSettings().finger_force,
                         metavar="N", help="normal force each contact surface can press with, N "
                         "(default: isf validate's)")
@@ -259,8 +237,8 @@ def main() -> None:
     PLAN_OPTIONS["seed"] = args.seed
     if args.no_centring:
         PLAN_OPTIONS["centring"] = False
-    if args.com_bias is not None:
-        PLAN_OPTIONS["sampler"] = lambda: CentreOfMassRegret(bias=args.com_bias)
+    if args.com_share is not None:
+        PLAN_OPTIONS["sampler"] = lambda: RegretSampler(com_share=args.com_share)
     grippers = args.grippers.split(",")
     objects = args.objects.split(",")[:2] if args.quick else args.objects.split(",")
     started, header = time.perf_counter(), _common.machine_description()
@@ -327,8 +305,8 @@ def main() -> None:
         [[r["gripper"], r["method"], r["object"],
           " ".join(f"{o[0].upper()}{h}" for o, h in zip(r["outcomes"], r["held_directions"]))]
          for r in rows])
-    sampler = ("regret sampler" if args.com_bias is None
-               else f"CentreOfMassRegret sampler (bias {args.com_bias})")
+    share = RegretSampler().com_share if args.com_share is None else args.com_share
+    sampler = f"regret sampler (com_share {share})"
     sampler += ", grasps not centred" if args.no_centring else ", grasps centred"
     text = (f"{SAMPLES} samples, {sampler}, seed {args.seed}, YCB objects at real size; top {TOP} "
             f"grasps of each plan simulated with friction {settings.friction}, "

@@ -44,8 +44,9 @@ QUICK_OBJECTS, QUICK_SAMPLES = ("duck",), 20
 
 
 def paper_sampler() -> RegretSampler:
-    """The paper's sampler: k-means centres, uniformly random orientations."""
-    return RegretSampler(orientation="random")
+    """The paper's sampler: k-means centres, uniformly random orientations, no start at the
+    centre of mass."""
+    return RegretSampler(orientation="random", com_share=0)
 
 
 def measure(gripper, obj, samples: int, mode: _common.Mode, args) -> dict:
@@ -190,7 +191,7 @@ def main() -> None:
     repair = ("colliding fits repaired and valid grasps centred (isf.plan's defaults)"
               if args.repair else "no collision repair and no centring (the paper's Algorithm 3)")
     note = (f"Gripper `{GRIPPER}`, {args.samples} samples per object, regret sampler with random "
-            f"orientations (the paper's), {repair}, objects scaled to a "
+            f"orientations and no starts at the centre of mass (the paper's), {repair}, objects scaled to a "
             f"{_common.PAPER_GRIPPER_MIDDLE_EXTENT * 1e3:g} mm middle extent and sampled to at "
             f"most {MAX_POINTS} points; modes {', '.join(b.label for b in batches)} "
             f"(B: samples in lockstep in one thread, W: worker threads on as many CPUs; "

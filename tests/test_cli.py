@@ -261,7 +261,8 @@ def test_sampler_parameters_from_the_command_line_give_the_library_plan(tmp_path
     data = json.loads(out.read_text())
     np.testing.assert_allclose([g["T_object_gripper"] for g in data["grasps"]],
                                [g.T_object_gripper for g in library.grasps], atol=1e-12)
-    assert {g["sampler"]["cluster"] for g in data["grasps"]} <= {0, 1, 2}
+    assert {g["sampler"].get("cluster", g["sampler"].get("start")) for g in data["grasps"]} \
+        <= {0, 1, 2, "centre_of_mass"}
 
 
 @pytest.mark.parametrize("param, message", [

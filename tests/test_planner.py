@@ -32,7 +32,9 @@ def test_ranking_and_stats(paper_gripper, cylinder):
     best = result.best
     assert best.collision_free and best.fit.mean_distance < 0.2e-3
     assert 2 * best.q[0] == pytest.approx(0.016, abs=0.3e-3)  # the cylinder's diameter
-    assert {"cluster"} <= set(best.sampler_record)
+    records = [g.sampler_record for g in result.grasps]
+    assert all(set(r) in ({"cluster", "regret"}, {"start"}) for r in records)
+    assert sum("start" in r for r in records) == 6  # every second sample (RegretSampler.com_share)
 
 
 def _lowest_point(gripper, grasp):

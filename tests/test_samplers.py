@@ -9,6 +9,7 @@ from typing import ClassVar
 import numpy as np
 import pytest
 
+import isf
 import isf.planning.planner
 import isf.samplers.base
 from isf.exceptions import ConfigError
@@ -346,7 +347,7 @@ def test_kmeans_result_is_a_lloyd_fixed_point(gripper, box):
 
 def test_regret_bookkeeping_follows_algorithm_3(gripper):
     obj, _ = _blobs()
-    sampler = RegretSampler(n_clusters=3, gamma=0.5)
+    sampler = RegretSampler(n_clusters=3, gamma=0.5, com_share=0)
     rng = np.random.default_rng(0)
     sampler.reset(obj, gripper, rng)
     # (error, collision_free) fed back, and the cluster Alg. 3 must pick before each:
@@ -371,7 +372,7 @@ def test_regret_bookkeeping_follows_algorithm_3(gripper):
 
 
 def test_regret_batch_proposes_at_one_cluster_with_distinct_rotations(gripper, box):
-    sampler = RegretSampler()
+    sampler = RegretSampler(com_share=0)
     rng = np.random.default_rng(0)
     sampler.reset(box, gripper, rng)
     proposals = sampler.propose(4, rng)
@@ -391,10 +392,57 @@ def test_regret_rejects_foreign_outcomes(gripper, box):
         sampler.observe([Outcome(Proposal(np.eye(4)), error=0.1, collision_free=True)])
 
 
+def _dumbbell():
+    """Two disjoint boxes as one closed mesh: 4 cm cube at the origin and a 1 x 1 x 8 cm bar
+    centred at x = 10 cm. Solid centre of mass x = 0.10 * 8 / 72 m; the surface's area-weighted
+    centroid lies at x = 0.10 * 34 / 130 m."""
+    import trimesh
+
+    bar = trimesh.creation.box(extents=(0.01, 0.01, 0.08))
+    bar.apply_translation((0.10, 0.0, 0.0))
+    mesh = trimesh.util.concatenate([trimesh.creation.box(extents=(0.04, 0.04, 0.04)), bar])
+    return isf.load_object(mesh, voxel_size=0.004)
+
+
+def test_regret_starts_a_share_at_the_solid_centre_of_mass(gripper):
+    obj = _dumbbell()
+    centre = np.array([0.10 * 8 / 72, 0.0, 0.0])
+    for share, expected in ((0.5, [1, 3, 5, 7, 9, 11]), (1 / 3, [2, 5, 8, 11]), (0.0, [])):
+        sampler = RegretSampler(com_share=share)
+        rng = np.random.default_rng(0)
+        sampler.reset(obj, gripper, rng)
+        proposals = sampler.propose(4, rng) + [p for _ in range(8)
+                                               for p in sampler.propose(1, rng)]
+        at_centre = [i for i, p in enumerate(proposals) if p.record.get("start") == "centre_of_mass"]
+        assert at_centre == expected
+        for i in at_centre:
+            T = proposals[i].T_object_gripper
+            np.testing.assert_allclose(T[:3, :3] @ GRASP_CENTRE + T[:3, 3], centre, atol=1e-9)
+        approach = [proposals[i].T_object_gripper[:3, 2] for i in at_centre]
+        assert len({a.round(6).tobytes() for a in approach}) == len(at_centre)  # random turns
+        # outcomes of centre-of-mass starts leave the clusters' regret alone
+        trials = sampler.trials.copy()
+        sampler.observe([Outcome(proposals[i], error=0.003, collision_free=True)
+                         for i in at_centre])
+        np.testing.assert_array_equal(sampler.trials, trials)
+
+
+def test_regret_makes_no_centre_of_mass_start_on_what_cameras_saw(gripper):
+    obj = _dumbbell()
+    seen = ObjectSurface(points=obj.points, normals=obj.normals, spacing=obj.spacing,
+                         viewpoints=np.array([[0.0, 0.0, 0.5]]))
+    sampler = RegretSampler(com_share=0.5)
+    rng = np.random.default_rng(0)
+    sampler.reset(seen, gripper, rng)
+    assert sampler.centre_of_mass is None
+    assert all("cluster" in p.record for p in sampler.propose(6, rng))
+
+
 @pytest.mark.parametrize(
     "params",
     [{"n_clusters": 0}, {"n_clusters": 2.5}, {"n_clusters": True}, {"gamma": -0.1},
-     {"gamma": float("nan")}, {"gamma": "0.2"}, {"kmeans_iterations": 0}],
+     {"gamma": float("nan")}, {"gamma": "0.2"}, {"kmeans_iterations": 0}, {"com_share": 1.0},
+     {"com_share": -0.1}, {"com_share": "0.5"}, {"com_share": True}],
 )
 def test_regret_validates_parameters(params):
     key = next(iter(params))

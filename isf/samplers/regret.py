@@ -14,11 +14,18 @@ with a random orientation, and the fitted result updates that cluster:
 with ``col = 1`` when the fitted gripper collides with the object. Starting
 from ``regret = 0``, every cluster is tried once before any is tried twice
 (as long as errors are positive).
+
+Besides the clusters, a share ``com_share`` of the proposals (every second one at the default
+0.5) puts the grasp centre at the object's centre of mass, facing a uniformly random direction:
+grasps whose contacts surround the centre of mass resist gravity best (docs/validate.md), and
+a start on a cluster centre, on the surface, seldom converges there on a large object. These
+starts update no cluster. ``com_share=0`` is the paper's Algorithm 3.
 """
 
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
@@ -42,6 +49,8 @@ PAPER_CLUSTERS = 6
 """The paper's number of k-means centres (section V-A)."""
 MAX_SCENE_CLUSTERS = 30
 """Most centres the default gives a scene."""
+CENTRE_OF_MASS_START = "centre_of_mass"
+"""The ``record["start"]`` of a proposal whose grasp centre is the object's centre of mass."""
 
 
 def _default_clusters(obj: ObjectSurface, gripper: Gripper) -> int:
@@ -80,6 +89,14 @@ class RegretSampler(Sampler):
         orientation: ``auto`` (default: the gripper's approach axis against the cluster's
             mean outward normal when it declares one, else random), ``approach`` or
             ``random`` (uniform on SO(3), the paper's); see :mod:`isf.samplers.orientation`.
+        com_share: share of the proposals, in [0, 1), whose grasp centre is the object's
+            centre of mass (:func:`isf.quality.grasp_quality.object_properties`: the solid's
+            for a closed mesh), the approach axis on a uniformly random direction (a uniformly
+            random orientation with ``orientation="random"``); proposal ``i`` (from 0) is one
+            when ``floor((i + 1) * com_share) > floor(i * com_share)``. Objects seen by
+            cameras (``ObjectSurface.viewpoints`` set: a scene or a partial cloud, whose
+            centroid is not the centre of mass of an object) get none. 0 gives the paper's
+            Algorithm 3.
 
     Attributes:
         k: the number of centres K in use (``n_clusters`` or its default).
@@ -88,6 +105,8 @@ class RegretSampler(Sampler):
         regret: average regret per cluster, shape (K,), metres.
         trials: number of outcomes per cluster, shape (K,).
         pending: proposals per cluster still awaiting an outcome, shape (K,).
+        centre_of_mass: where the centre-of-mass starts put the grasp centre, object frame,
+            shape (3,), metres; None when this plan makes none.
     """
 
     name = "regret"
@@ -97,6 +116,7 @@ class RegretSampler(Sampler):
     gamma: float = 0.2
     kmeans_iterations: int = 10
     orientation: str = "auto"
+    com_share: float = 0.5
 
     k: int = field(init=False, repr=False, default=0)
     centres: np.ndarray = field(init=False, repr=False, default=None)
@@ -105,6 +125,8 @@ class RegretSampler(Sampler):
     trials: np.ndarray = field(init=False, repr=False, default=None)
     inward: np.ndarray = field(init=False, repr=False, default=None)
     pending: np.ndarray = field(init=False, repr=False, default=None)
+    centre_of_mass: np.ndarray | None = field(init=False, repr=False, default=None)
+    _proposed: int = field(init=False, repr=False, default=0)
     _approach: np.ndarray | None = field(init=False, repr=False, default=None)
 
     def __post_init__(self) -> None:
@@ -119,6 +141,10 @@ class RegretSampler(Sampler):
             raise ConfigError(f"regret: gamma must be a number >= 0, got {gamma!r}")
         if not np.isfinite(gamma) or gamma < 0:
             raise ConfigError(f"regret: gamma must be a finite number >= 0, got {gamma!r}")
+        share = self.com_share
+        if isinstance(share, bool) or not isinstance(share, (int, float, np.number)) \
+                or not 0 <= share < 1:
+            raise ConfigError(f"regret: com_share must be a number in [0, 1), got {share!r}")
         check_orientation(self.orientation, self.name)
 
     def reset(self, obj: ObjectSurface, gripper: Gripper, rng: np.random.Generator) -> None:
@@ -145,6 +171,12 @@ class RegretSampler(Sampler):
         self.pending = np.zeros(self.k, dtype=int)
         self._approach = resolve_approach(self.orientation, gripper, self.name)
         self.inward = self._inward_directions(obj)
+        self._proposed = 0
+        self.centre_of_mass = None
+        if self.com_share > 0 and obj.viewpoints is None:
+            from ..quality import object_properties
+
+            self.centre_of_mass = object_properties(obj).center_of_mass
 
     def _inward_directions(self, obj: ObjectSurface) -> np.ndarray:
         """Per cluster, minus its points' mean normal (or the normal nearest its centre when
@@ -187,14 +219,39 @@ class RegretSampler(Sampler):
         return int(np.lexsort((np.arange(self.k), self.pending, self.regret))[0])
 
     def propose(self, n: int, rng: np.random.Generator) -> list[Proposal]:
-        """``n`` proposals at the best cluster centre, each with its own orientation."""
+        """``n`` proposals, each with its own orientation: at the best cluster centre, or at the
+        centre of mass where ``com_share`` asks for one."""
         _, gripper = self._require_reset()
-        k = self.best_cluster()
-        R = initial_rotations(self._approach, np.repeat(self.inward[k][None], n, axis=0), rng)
-        T = place_gripper(gripper, self.centres[k], R)
-        record = {"cluster": k, "regret": float(self.regret[k])}
-        self.pending[k] += n
-        return [Proposal(T[i], record=record) for i in range(n)]
+        at_centre = [self._centre_of_mass_turn() for _ in range(n)]
+        proposals: list[Proposal | None] = [None] * n
+        n_centre = sum(at_centre)
+        if n_centre < n:
+            k = self.best_cluster()
+            count = n - n_centre
+            R = initial_rotations(self._approach, np.repeat(self.inward[k][None], count, axis=0),
+                                  rng)
+            T = place_gripper(gripper, self.centres[k], R)
+            record = {"cluster": k, "regret": float(self.regret[k])}
+            self.pending[k] += count
+            slots = [i for i in range(n) if not at_centre[i]]
+            for i, T_i in zip(slots, T):
+                proposals[i] = Proposal(T_i, record=record)
+        if n_centre:
+            directions = rng.standard_normal((n_centre, 3))
+            R = initial_rotations(self._approach, directions, rng)
+            T = place_gripper(gripper, self.centre_of_mass, R)
+            slots = [i for i in range(n) if at_centre[i]]
+            for i, T_i in zip(slots, T):
+                proposals[i] = Proposal(T_i, record={"start": CENTRE_OF_MASS_START})
+        return proposals
+
+    def _centre_of_mass_turn(self) -> bool:
+        """Whether the next proposal starts at the centre of mass (advances the count)."""
+        i = self._proposed
+        self._proposed += 1
+        if self.centre_of_mass is None:
+            return False
+        return math.floor((i + 1) * self.com_share) > math.floor(i * self.com_share)
 
     def in_flight_limit(self) -> int | None:
         """While some cluster has no outcome yet, one proposal per such cluster (exploration,
@@ -204,13 +261,17 @@ class RegretSampler(Sampler):
         return max(untried, 1) if untried else None
 
     def observe(self, outcomes: Sequence[Outcome]) -> None:
-        """Fold each outcome into its cluster's average regret, in order.
+        """Fold each outcome into its cluster's average regret, in order (a start at the centre
+        of mass updates no cluster).
 
         Raises:
-            ValueError: an outcome's proposal has no valid ``"cluster"`` record.
+            ValueError: an outcome's proposal has neither a valid ``"cluster"`` record nor a
+                centre-of-mass one.
         """
         self._require_reset()
         for outcome in outcomes:
+            if outcome.proposal.record.get("start") == CENTRE_OF_MASS_START:
+                continue
             k = outcome.proposal.record.get("cluster")
             if not isinstance(k, (int, np.integer)) or not 0 <= k < self.k:
                 raise ValueError(

@@ -158,7 +158,7 @@ class LearnedSampler(Sampler):
         if not isinstance(self.model, (str, os.PathLike)):
             raise ConfigError(f"learned: model must be 'auto', 'none' or a file path, "
                               f"got {self.model!r}")
-        RegretSampler(n_clusters=self.n_clusters, gamma=self.gamma)  # validates both
+        RegretSampler(n_clusters=self.n_clusters, gamma=self.gamma, com_share=0)  # validates both
 
     def reset(self, obj: ObjectSurface, gripper: Gripper, rng: np.random.Generator) -> None:
         """Cluster the object, place the model's arms, score every arm's spins and zero the
@@ -172,7 +172,7 @@ class LearnedSampler(Sampler):
         super().reset(obj, gripper, rng)
         self._axes = gripper_axes(gripper)
         self.loaded = self._resolve_model(gripper)
-        self.bandit = RegretSampler(n_clusters=self.n_clusters, gamma=self.gamma)
+        self.bandit = RegretSampler(n_clusters=self.n_clusters, gamma=self.gamma, com_share=0)
         self.bandit.reset(obj, gripper, rng)
         self.k_clusters = self.bandit.k
         descriptors = None if self.loaded is None else ObjectDescriptors.build(obj, self._axes)

@@ -1,0 +1,98 @@
+"""What the regret sampler's starts at the centre of mass change in a plan, at what cost.
+
+For each gripper and YCB object (real size) and seed, one ``isf.plan`` of 60 samples with
+``RegretSampler(com_share=0)`` (the paper's starts: cluster centres only) and one with the
+default ``com_share`` (every second start at the object's centre of mass), the two alternating
+in one process. Reported per gripper and setting, summed or taken as medians over the plans:
+valid grasps, valid grasps whose contacts' centroid lies within 20 mm of the centre of mass
+(``GraspQuality.com_offset``), the top-5 grasps' median ``com_offset``, and the plan's wall
+time (``PlanStats.total_time``) with the paired ratio default / paper (median and worst).
+Whether the grasps hold is for ``bench/bench_hold.py`` (physics) to say.
+
+Needs the YCB meshes (``../shared/data/ycb`` or ``$ISF_YCB_DIR``).
+
+Run from the repository root:
+    python bench/bench_starts.py [--grippers flat-parallel,franka-hand] [--objects Banana,...]
+                                 [--seeds 2]
+"""
+
+from __future__ import annotations
+
+import _common  # first: pins the threads
+
+import argparse
+import statistics
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+import isf
+from isf.samplers.regret import RegretSampler
+
+GRIPPERS = ("paper-parallel", "flat-parallel", "three-finger", "franka-hand")
+OBJECTS = ("Banana", "CrackerBox", "FoamBrick", "GelatinBox", "MasterChefCan", "MustardBottle",
+           "PottedMeatCan", "PowerDrill", "Scissors", "TomatoSoupCan")
+NEAR = 0.02
+"""A valid grasp is near the centre of mass when its contacts' centroid is within this, m."""
+
+
+def load(name: str, folder: Path) -> isf.Gripper:
+    return _common.tagged_franka_hand(folder) if name == "franka-hand" else isf.load_gripper(name)
+
+
+def measure(gripper, obj, seed: int, com_share: float | None) -> dict:
+    """One plan's figures; ``com_share=None`` is the sampler's default."""
+    sampler = RegretSampler() if com_share is None else RegretSampler(com_share=com_share)
+    result = isf.plan(gripper, obj, samples=60, seed=seed, sampler=sampler)
+    valid = [g for g in result.grasps if g.valid]
+    offsets = [g.quality.com_offset for g in valid]
+    return {"valid": len(valid), "near": sum(o < NEAR for o in offsets),
+            "top5": float(np.median(offsets[:5])) if offsets else float("nan"),
+            "time": result.stats.total_time}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--grippers", default=",".join(GRIPPERS))
+    parser.add_argument("--objects", default=",".join(OBJECTS))
+    parser.add_argument("--seeds", type=int, default=2)
+    args = parser.parse_args()
+    default = RegretSampler().com_share
+    print(_common.machine_description())
+    print(f"60 samples, seeds 0..{args.seeds - 1}; 'paper': com_share=0, 'default': "
+          f"com_share={default}; near: contacts within {1000 * NEAR:.0f} mm of the centre of mass")
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="isf-bench-starts-") as folder:
+        for name in args.grippers.split(","):
+            gripper = load(name, Path(folder))
+            isf.plan(gripper, isf.open_object("shape:box"), samples=4, seed=0)  # kernels ready
+            runs: dict[str, list[dict]] = {"paper": [], "default": []}
+            for obj_name in args.objects.split(","):
+                obj = isf.open_object(f"asset:ycb:{obj_name}")
+                for seed in range(args.seeds):
+                    order = ("paper", "default") if seed % 2 == 0 else ("default", "paper")
+                    for label in order:
+                        runs[label].append(measure(gripper, obj, seed,
+                                                   0.0 if label == "paper" else None))
+                    p, d = runs["paper"][-1], runs["default"][-1]
+                    print(f"# {name} {obj_name} seed {seed}: valid {p['valid']} -> {d['valid']}, "
+                          f"near {p['near']} -> {d['near']}, top-5 offset "
+                          f"{1000 * p['top5']:.0f} -> {1000 * d['top5']:.0f} mm, time "
+                          f"{p['time']:.2f} -> {d['time']:.2f} s", flush=True)
+            ratios = [d["time"] / p["time"] for p, d in zip(runs["paper"], runs["default"])]
+            for label, plans in runs.items():
+                rows.append([name, label, len(plans), sum(r["valid"] for r in plans),
+                             sum(r["near"] for r in plans),
+                             _common.fmt(1000 * float(np.nanmedian([r["top5"] for r in plans]))),
+                             _common.fmt(statistics.median(r["time"] for r in plans)),
+                             "" if label == "paper" else
+                             f"{statistics.median(ratios):.2f} (worst {max(ratios):.2f})"])
+    print(_common.markdown_table(
+        ["gripper", "starts", "plans", "valid grasps", "valid within 20 mm of the centre of mass",
+         "top-5 median distance (mm)", "median plan time (s)", "time ratio default / paper"],
+        rows))
+
+
+if __name__ == "__main__":
+    main()
