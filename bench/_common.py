@@ -190,14 +190,16 @@ def default_batch_size() -> int:
 
 
 def plan_once(gripper, obj, samples: int, seed: int, config=None, batch_size: int | None = None,
-              sampler="regret", repair_collisions=None, **plan_kwargs) -> dict:
+              sampler=None, repair_collisions=None, **plan_kwargs) -> dict:
     """One ``isf.plan``: wall and CPU time, stage times, counts, fit quality.
 
     Args:
         gripper, obj, samples, seed, config: passed to ``isf.plan``.
         batch_size: samples fitted in lockstep (None: ``isf.plan``'s default; 1: the paper's
             strictly sequential loop).
-        sampler: a sampler name or instance (default the regret bandit).
+        sampler: a sampler name or instance; None (default): the regret bandit with every start
+            on a cluster centre (``RegretSampler(com_share=0)``), as the speed figures of
+            docs/benchmarks.md were measured.
         repair_collisions: passed to ``isf.plan`` (None: its default, on; False: the paper's
             Algorithm 3 without the collision repair; an ``isf.RepairConfig``: the repair with
             those parameters).
@@ -216,6 +218,10 @@ def plan_once(gripper, obj, samples: int, seed: int, config=None, batch_size: in
     """
     import isf
 
+    if sampler is None:
+        from isf.samplers import RegretSampler
+
+        sampler = RegretSampler(com_share=0)
     kwargs = {"rank": "fit", "centring": False, **plan_kwargs}
     if batch_size is not None:
         kwargs["batch_size"] = batch_size

@@ -45,7 +45,8 @@ def _run(command: list[str]) -> float:
 def _plan(objects: list[str], samples: int, out: list[str]) -> list[str]:
     flags = [flag for spec in objects for flag in ("--object", spec)]
     return [sys.executable, "-m", "isf", "plan", "--gripper", GRIPPER, *flags,
-            "--samples", str(samples), "--rank", "fit", "--no-centring", "--quiet", *out]
+            "--samples", str(samples), "--rank", "fit", "--no-centring",
+            "--sampler-param", "com_share=0", "--quiet", *out]
 
 
 def _plan_file(path: Path) -> tuple[str, list]:

@@ -427,7 +427,7 @@ def test_regret_starts_a_share_at_the_solid_centre_of_mass(gripper):
         np.testing.assert_array_equal(sampler.trials, trials)
 
 
-def test_regret_makes_no_centre_of_mass_start_on_what_cameras_saw(gripper):
+def test_regret_makes_no_centre_of_mass_start_on_a_scene(gripper):
     obj = _dumbbell()
     seen = ObjectSurface(points=obj.points, normals=obj.normals, spacing=obj.spacing,
                          viewpoints=np.array([[0.0, 0.0, 0.5]]))

@@ -16,7 +16,8 @@ from ``regret = 0``, every cluster is tried once before any is tried twice
 (as long as errors are positive).
 
 Besides the clusters, a share ``com_share`` of the proposals (every second one at the default
-0.5) puts the grasp centre at the object's centre of mass, facing a uniformly random direction:
+0.5) puts the grasp centre at the object's centre of mass, facing a uniformly random direction
+(not on a scene):
 grasps whose contacts surround the centre of mass resist gravity best (docs/validate.md), and
 a start on a cluster centre, on the surface, seldom converges there on a large object. These
 starts update no cluster. ``com_share=0`` is the paper's Algorithm 3.
@@ -93,9 +94,9 @@ class RegretSampler(Sampler):
             centre of mass (:func:`isf.quality.grasp_quality.object_properties`: the solid's
             for a closed mesh), the approach axis on a uniformly random direction (a uniformly
             random orientation with ``orientation="random"``); proposal ``i`` (from 0) is one
-            when ``floor((i + 1) * com_share) > floor(i * com_share)``. Objects seen by
-            cameras (``ObjectSurface.viewpoints`` set: a scene or a partial cloud, whose
-            centroid is not the centre of mass of an object) get none. 0 gives the paper's
+            when ``floor((i + 1) * com_share) > floor(i * com_share)``. A scene
+            (:mod:`isf.scene`, ``ObjectSurface.viewpoints`` set) gets none: the centroid of an
+            unsegmented scene is the centre of mass of no object. 0 gives the paper's
             Algorithm 3.
 
     Attributes:
