@@ -16,11 +16,10 @@ from ``regret = 0``, every cluster is tried once before any is tried twice
 (as long as errors are positive).
 
 Besides the clusters, a share ``com_share`` of the proposals (every second one at the default
-0.5) puts the grasp centre at the object's centre of mass, facing a uniformly random direction
-(not on a scene):
-grasps whose contacts surround the centre of mass resist gravity best (docs/validate.md), and
-a start on a cluster centre, on the surface, seldom converges there on a large object. These
-starts update no cluster. ``com_share=0`` is the paper's Algorithm 3.
+0.5; none on a scene) puts the grasp centre at the object's centre of mass, facing a uniformly
+random direction: grasps whose contacts surround the centre of mass resist gravity best
+(docs/validate.md), and a start on a cluster centre, on the surface, seldom converges there on
+a large object. These starts update no cluster. ``com_share=0`` is the paper's Algorithm 3.
 """
 
 from __future__ import annotations
