@@ -29,17 +29,12 @@ from pathlib import Path
 import numpy as np
 
 import isf
+from bench_hold import OBJECTS, load
 from isf.samplers.regret import RegretSampler
 
 GRIPPERS = ("paper-parallel", "flat-parallel", "three-finger", "franka-hand")
-OBJECTS = ("Banana", "CrackerBox", "FoamBrick", "GelatinBox", "MasterChefCan", "MustardBottle",
-           "PottedMeatCan", "PowerDrill", "Scissors", "TomatoSoupCan")
 NEAR = 0.02
 """A valid grasp is near the centre of mass when its contacts' centroid is within this, m."""
-
-
-def load(name: str, folder: Path) -> isf.Gripper:
-    return _common.tagged_franka_hand(folder) if name == "franka-hand" else isf.load_gripper(name)
 
 
 def measure(gripper, obj, seed: int, com_share: float | None) -> dict:

@@ -163,6 +163,19 @@ def mesh_bvh(vertices: np.ndarray, faces: np.ndarray) -> coal.BVHModelOBBRSS:
     return model
 
 
+def mesh_distances(bvh: coal.BVHModelOBBRSS, points: np.ndarray) -> np.ndarray:
+    """Exact distance (m) of each point (P, 3), mesh frame, from the triangle mesh of ``bvh``
+    (:func:`mesh_bvh`), by coal, (P,)."""
+    point, at, identity = coal.Sphere(0.0), coal.Transform3s(), coal.Transform3s()
+    request, result = coal.DistanceRequest(), coal.DistanceResult()
+    out = np.empty(len(points))
+    for k, p in enumerate(np.asarray(points, dtype=float)):
+        at.setTranslation(p)
+        result.clear()
+        out[k] = coal.distance(point, at, bvh, identity, request, result)
+    return out
+
+
 def object_bvh(obj: ObjectSurface) -> coal.BVHModelOBBRSS:
     """The coal BVH of a mesh object's triangles, built once per mesh (see
     :func:`isf.collision.surface_distance.mesh_memo`)."""
@@ -330,9 +343,6 @@ class CollisionChecker:
         self.estimates = 0
         """Exact tangent-plane estimates of the object's surface made by the checks so far (a
         cost diagnostic)."""
-        self._point, self._at = coal.Sphere(0.0), coal.Transform3s()  # a point, and where it is
-        self._identity = coal.Transform3s()
-        self._distance_request, self._distance = coal.DistanceRequest(), coal.DistanceResult()
 
     # ------------------------------------------------------------------- check
     def check(self, T_object_gripper: np.ndarray, q: np.ndarray) -> CollisionReport:
@@ -400,11 +410,8 @@ class CollisionChecker:
         """
         measured = nearest.copy()
         if self._mesh is not None:
-            for j in np.argsort(nearest, kind="stable")[:_CLEARANCE_EXACT]:
-                self._at.setTranslation(points[j])
-                self._distance.clear()
-                measured[j] = coal.distance(self._point, self._at, self._mesh, self._identity,
-                                            self._distance_request, self._distance)
+            exact = np.argsort(nearest, kind="stable")[:_CLEARANCE_EXACT]
+            measured[exact] = mesh_distances(self._mesh, points[exact])
         return reverse_clearance(measured, points, owner, poses, self._triangles, self._triangle_start,
                                  self._surface.points, self._surface.tree.tree,
                                  min(_REVERSE_PROBES, len(self._surface.points)))

@@ -107,18 +107,33 @@ class ObjectProperties:
 
 
 def object_properties(obj: ObjectSurface) -> ObjectProperties:
-    """The centre of mass and radius of ``obj`` (see :class:`ObjectProperties`)."""
+    """The centre of mass and radius of ``obj`` (see :class:`ObjectProperties`). A mesh's centre
+    of mass is computed once and kept in its memo
+    (:func:`isf.collision.surface_distance.mesh_memo`), which the sampler, the centring and the
+    ranking of a plan share."""
     center = obj.centroid
     if obj.is_mesh:
-        center = _solid_center_of_mass(obj.mesh_vertices, obj.mesh_faces)
-        if center is None:  # not closed: the centroid of the surface
-            import trimesh
+        from ..collision.surface_distance import mesh_memo  # loaded by every plan already
 
-            mesh = trimesh.Trimesh(obj.mesh_vertices, obj.mesh_faces, process=False)
-            center = mesh.triangles_center.T @ (mesh.area_faces / mesh.area)
+        memo = mesh_memo(obj)
+        if "center_of_mass" not in memo:
+            memo["center_of_mass"] = _mesh_center_of_mass(obj.mesh_vertices, obj.mesh_faces)
+        center = memo["center_of_mass"].copy()
     center = np.asarray(center, dtype=float)
     radius = float(np.linalg.norm(obj.points - center, axis=1).max())
     return ObjectProperties(center, max(radius, 1e-6))
+
+
+def _mesh_center_of_mass(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """The solid's centre of mass (3,) of a closed mesh (:func:`_solid_center_of_mass`), else
+    the area-weighted centroid of its surface."""
+    center = _solid_center_of_mass(vertices, faces)
+    if center is None:  # not closed: the centroid of the surface
+        import trimesh
+
+        mesh = trimesh.Trimesh(vertices, faces, process=False)
+        center = mesh.triangles_center.T @ (mesh.area_faces / mesh.area)
+    return np.asarray(center, dtype=float)
 
 
 def _solid_center_of_mass(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray | None:

@@ -75,20 +75,10 @@ def coacd_threshold(vertices: np.ndarray, tolerance: float = PART_TOLERANCE) -> 
 
 def distances_to_mesh(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """Exact distance (m) of each point (P, 3) from a triangle mesh (vertices (V, 3) m, faces
-    (F, 3)), by coal, (P,)."""
-    import coal
+    (F, 3)), by coal (``isf.collision.checker.mesh_distances``), (P,)."""
+    from ..collision.checker import mesh_bvh, mesh_distances
 
-    from ..collision.checker import mesh_bvh
-
-    bvh = mesh_bvh(vertices, faces)
-    point, at, identity = coal.Sphere(0.0), coal.Transform3s(), coal.Transform3s()
-    request, result = coal.DistanceRequest(), coal.DistanceResult()
-    out = np.empty(len(points))
-    for k, p in enumerate(np.asarray(points, dtype=float)):
-        at.setTranslation(p)
-        result.clear()
-        out[k] = coal.distance(point, at, bvh, identity, request, result)
-    return out
+    return mesh_distances(mesh_bvh(vertices, faces), points)
 
 
 def hull_standoff(mesh, hull) -> float:
@@ -152,20 +142,21 @@ def _read_parts(path) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
 
 
 def _store_parts(key: str, parts: tuple[tuple[np.ndarray, np.ndarray], ...]) -> None:
-    """Write the parts for later processes (atomically: a reader never sees half a file); a
-    cache that cannot be written is skipped."""
-    import os
-    import tempfile
+    """Write the parts for later processes (:func:`isf.output_files.write_atomically`: a reader
+    never sees half a file); a cache that cannot be written is skipped."""
+    import io
+
+    from ..exceptions import OutputFileError
+    from ..output_files import write_atomically
 
     path = _parts_file(key)
+    data = io.BytesIO()
+    np.savez(data, **{f"{name}{k}": array for k, (v, f) in enumerate(parts)
+                      for name, array in (("v", v), ("f", f))})
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        handle, temporary = tempfile.mkstemp(dir=path.parent, suffix=".npz.part")
-        with os.fdopen(handle, "wb") as out:
-            np.savez(out, **{f"{name}{k}": array for k, (v, f) in enumerate(parts)
-                             for name, array in (("v", v), ("f", f))})
-        os.replace(temporary, path)
-    except OSError:
+        write_atomically(path, data.getvalue(), "convex parts cache file")
+    except (OSError, OutputFileError):
         return
 
 
