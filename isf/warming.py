@@ -44,6 +44,7 @@ from .config import FitConfig
 from .fitting.correspondence import match
 from .fitting.engine import score_fit
 from .fitting.fit import fit_many
+from .fitting.reclosing import reclose_joints
 from .gripper.model import ContactSurface, Gripper, LinkGeometry
 from .object.surface import ObjectSurface
 from .repair.clearance import ClearanceRepair
@@ -237,9 +238,10 @@ def _plane() -> ObjectSurface:
 
 def _warm_checks() -> None:
     """The kernels of the collision checks and the repair, and the engine's kernels that only
-    finished fits and the repair call (a fit's score, nearest points, the correspondence
-    filter). Those that need no k-d tree and no kinematics come first: the engine's part
-    compiles both at once, and they are then in the cache when this part needs them."""
+    finished fits, the repair and the centring call (a fit's score, nearest points, the
+    correspondence filter, the finger step's box QP). Those that need no k-d tree and no
+    kinematics come first: the engine's part compiles both at once, and they are then in the
+    cache when this part needs them."""
     points = np.random.default_rng(0).uniform(-0.01, 0.01, (50, 3))
     box = trimesh.creation.box(extents=(0.01, 0.01, 0.01))
     ConvexElements([(box.vertices, box.faces)], np.zeros(1), np.zeros(1)).rows(
@@ -254,6 +256,7 @@ def _warm_checks() -> None:
     search.query_within(points[:2], 0.01)  # a bounded search
     plane, T = _plane(), _pad_pose()
     score_fit(_tiny_gripper(), plane, T, np.zeros(1), FitConfig(), FitStatus.CONVERGED, (), 0.0)
+    reclose_joints(_tiny_gripper(), plane, T, np.zeros(1))  # the centring's box QP, from Python
     plane.nearest(plane.points[:2])  # as the collision repair asks
     match(plane, plane.points[:8] + [0.0, 0.0, 0.001], outlier_factor=3.0, outlier_floor=0.005,
           reject_duplicates=True)

@@ -1,9 +1,10 @@
 """Centring (:mod:`isf.planning.centring`): valid grasps slid toward the centre of mass.
 
 Ground truth: the free directions of contact normals are known in closed form; a parallel grasp
-4 cm off the centre of mass of a box slides there exactly (its pads stay on the faces); and
-MuJoCo (``isf.simulation``, independent of the planner) finds the off-centre grasp turning out
-of the pads under a load the centred one holds.
+4 cm off the centre of mass of a box slides there exactly (its pads stay on the faces); on a
+tapered block the re-closed jaws meet the faces where the block's width is known in closed form,
+at the centre of mass trimesh computes; and MuJoCo (``isf.simulation``, independent of the
+planner) finds the off-centre grasp turning out of the pads under a load the centred one holds.
 """
 
 import importlib.util
@@ -19,6 +20,7 @@ from isf.collision.checker import CollisionChecker
 from isf.config import FitConfig
 from isf.exceptions import ConfigError, InvalidInputError
 from isf.fitting.engine import score_fit
+from isf.fitting.reclosing import reclose_joints
 from isf.planning.centring import CentringConfig, GraspCentring, free_directions
 from isf.result import FitStatus
 
@@ -91,6 +93,72 @@ def test_an_off_centre_box_grasp_slides_to_the_centre_of_mass(off_centre):
     assert centred.result.all_surfaces_in_contact
 
 
+@pytest.mark.parametrize("q_start", [0.025, 0.018])
+def test_reclosing_puts_the_pads_on_the_faces_from_open_and_from_pressed(off_centre, q_start):
+    """flat-parallel's joint is half the jaw width: on the 4 cm faces it is 2 cm, whether the
+    pads start 5 mm off the faces or 2 mm inside them."""
+    gripper, _, obj, result, _, _ = off_centre
+    q = reclose_joints(gripper, obj, result.T_object_gripper, np.array([q_start]))
+    np.testing.assert_allclose(q, [BOX[1] / 2], atol=1e-9)
+
+
+def test_reclosing_leaves_the_joints_of_pads_off_the_object_alone(off_centre):
+    gripper, _, obj, result, _, _ = off_centre
+    away = result.T_object_gripper.copy()
+    away[:3, 3] += [0.0, 0.0, 0.2]  # the pads 20 cm beyond the box
+    np.testing.assert_array_equal(reclose_joints(gripper, obj, away, result.q), result.q)
+
+
+#: the tapered block: its width (along y) grows linearly from TAPER[0] at x = -6 cm to TAPER[1]
+#: at x = +6 cm; 3 cm thick along z.
+TAPER = (0.036, 0.044)
+
+
+def _tapered_block() -> trimesh.Trimesh:
+    x, z = 0.06, 0.015
+    corners = [(sx * x, sy * w / 2, sz * z) for sx, w in ((-1, TAPER[0]), (1, TAPER[1]))
+               for sy in (-1, 1) for sz in (-1, 1)]
+    return trimesh.convex.convex_hull(np.array(corners))
+
+
+def _width(x: float) -> float:
+    return TAPER[0] + (TAPER[1] - TAPER[0]) * (x + 0.06) / 0.12
+
+
+@pytest.mark.parametrize("reclose", [True, False])
+def test_a_grasp_on_a_tapered_block_slides_to_the_centre_of_mass_when_its_jaws_reclose(reclose):
+    """Started 4 cm off the centre of mass on the wide end, the jaws fitted there: moved to the
+    centre of mass with its joints fixed the pads stand off the narrower faces (the mean
+    distance grows by more than the slack), so the fixed-joint centring stops short; re-closed,
+    the grasp reaches the centre of mass with its jaws at the block's width there."""
+    gripper = isf.load_gripper("flat-parallel")
+    mesh = _tapered_block()
+    com = mesh.center_mass
+    obj = isf.load_object(mesh)
+    start = com[0] + OFFSET
+    T = np.eye(4)
+    T[:3, 3] = np.array([start, 0.0, 0.0]) - PAD_CENTRE
+    q = reclose_joints(gripper, obj, T, np.array([0.03]))
+    np.testing.assert_allclose(q, [_width(start) / 2], atol=2e-5)
+    config = FitConfig()
+    result = score_fit(gripper, obj, T, q, config, FitStatus.CONVERGED, (), 0.0)
+    checker = CollisionChecker(gripper, obj)
+    report = checker.check(T, q)
+    assert report.collision_free and result.all_surfaces_in_contact
+    centring = GraspCentring(gripper, obj, com, checker, config, CentringConfig(reclose=reclose))
+    centred = centring.centre(result, report).result
+    points, _ = gripper.contact_points(centred.q)
+    pads = centred.T_object_gripper[:3, :3] @ points.mean(axis=0) + centred.T_object_gripper[:3, 3]
+    if reclose:
+        np.testing.assert_allclose(pads[0], com[0], atol=5e-4)
+        np.testing.assert_allclose(centred.q, [_width(pads[0]) / 2], atol=2e-5)
+        assert centred.all_surfaces_in_contact
+        assert checker.check(centred.T_object_gripper, centred.q).collision_free
+    else:
+        assert pads[0] - com[0] > 0.01
+        np.testing.assert_array_equal(centred.q, q)
+
+
 def test_an_invalid_grasp_is_not_moved(off_centre):
     gripper, _, obj, result, report, centring = off_centre
     T, config = result.T_object_gripper, FitConfig()
@@ -150,7 +218,8 @@ def test_plans_centre_by_default_and_record_it(tmp_path):
             closer = (np.linalg.norm(grasp.fit.contact_points.mean(axis=0) - com)
                       < np.linalg.norm(fit.fit.contact_points.mean(axis=0) - com))
             assert closer
-            np.testing.assert_array_equal(grasp.q, fit.q)
+            if not np.array_equal(grasp.q, fit.q):  # re-closed: its pads on the object again
+                assert grasp.fit.all_surfaces_in_contact
             # the history is the fit's: it ends where the fit ended, not at the slid grasp
             np.testing.assert_array_equal(grasp.fit.history[-1].T_object_gripper,
                                           fit.T_object_gripper)
@@ -170,6 +239,8 @@ def test_bad_centring_arguments_are_refused_in_one_line():
         CentringConfig(fractions=())
     with pytest.raises(ConfigError, match="fractions"):
         CentringConfig(fractions=(1.0, 1.5))
+    with pytest.raises(ConfigError, match="reclose"):
+        CentringConfig(reclose="yes")
 
 
 def test_cli_no_centring_writes_no_centring(tmp_path):

@@ -6,7 +6,7 @@ on a flat face fits equally well anywhere on the face, so a fit stays wherever i
 often at a rim, far from the centre of mass, where a grip of bounded force cannot stop the
 object's weight from turning it about the contacts (``docs/validate.md`` measures how often that
 happens in physics). :class:`GraspCentring` moves each valid grasp (collision-free, every contact
-surface touching) with its joints fixed:
+surface touching), its joints fixed unless they must re-close:
 
 1. **Free directions.** With the contact normals ``n_i`` of every contact point (object frame),
    a translation ``t`` of the gripper changes the point-to-plane distances by ``n_i . t``; the
@@ -23,8 +23,13 @@ surface touching) with its joints fixed:
    of the fit's smallest contact fraction, and whose mean point-to-plane distance (rescored:
    :func:`isf.fitting.engine.score_fit`) exceeds the fit's by at most
    :attr:`isf.CentringConfig.error_slack` is kept; the collision check bounds how deep the palm goes.
-   Moves shorter than :attr:`isf.CentringConfig.min_move` are not tried. When no move passes, the
-   grasp stays as fitted.
+   Moves shorter than :attr:`isf.CentringConfig.min_move` are not tried.
+4. **Re-closing.** A move that fails the check with the fit's joints is tried again with the
+   joints re-closed onto the object at the moved pose
+   (:func:`isf.fitting.reclosing.reclose_joints`, starting from the joints the longer move
+   before it re-closed to): an object whose width changes along its face (a bulged carton, a
+   tapered bottle) leaves the contact surfaces off it, or pressed into it, where it is thinner
+   or wider than at the fit. When no move passes either way, the grasp stays as fitted.
 
 The planner centres the grasps of plans on objects (:func:`isf.plan`'s ``centring``); a scene
 has no one centre of mass (the cloud is unsegmented and partial), so its grasps are not centred.
@@ -43,6 +48,7 @@ from ..collision.checker import CollisionChecker, CollisionReport
 from ..config import FitConfig, check_field
 from ..exceptions import ConfigError
 from ..fitting.engine import PoseScorer, score_fit
+from ..fitting.reclosing import reclose_joints
 from ..gripper.model import Gripper
 from ..object.surface import ObjectSurface
 from ..result import FitResult, FitStatus
@@ -64,6 +70,9 @@ class CentringConfig:
         contact_keep: each contact surface keeps at least this fraction of the fit's smallest
             contact fraction (the share of a surface's points within ``contact_distance``).
         min_move: shorter moves are not tried, metres.
+        reclose: try a move that fails with the fit's joints again with the joints re-closed
+            onto the object (:func:`isf.fitting.reclosing.reclose_joints`); False keeps the
+            joints fixed.
     """
 
     fractions: tuple[float, ...] = (1.0, 0.75, 0.5, 0.25)
@@ -71,6 +80,7 @@ class CentringConfig:
     error_slack: float = 0.0005
     contact_keep: float = 0.7
     min_move: float = 0.002
+    reclose: bool = True
 
     def __post_init__(self) -> None:
         """Refuse values of the wrong type or out of range (:class:`ConfigError`)."""
@@ -85,6 +95,8 @@ class CentringConfig:
         check_field("CentringConfig", "error_slack", self.error_slack, low=0.0)
         check_field("CentringConfig", "contact_keep", self.contact_keep, low=0.0, high=1.0)
         check_field("CentringConfig", "min_move", self.min_move, above=0.0)
+        if not isinstance(self.reclose, bool):
+            raise ConfigError(f"CentringConfig.reclose must be True or False, got {self.reclose!r}")
 
 
 class Centred(NamedTuple):
@@ -143,28 +155,48 @@ class GraspCentring:
                           for k in range(len(self.gripper.surfaces))], axis=0)
         free = free_directions(normals @ R.T, config.free_ratio)
         offset = free.T @ (self.center_of_mass - centre)  # (F,), along each free direction
-        moves = [f * (free @ offset) for f in config.fractions]
+        # whole moves: toward the centre of mass, then along each free direction alone
+        wholes = [free @ offset]
         if free.shape[1] > 1:
-            moves += [f * offset[k] * free[:, k] for k in range(free.shape[1])
-                      for f in config.fractions]
+            wholes += [offset[k] * free[:, k] for k in range(free.shape[1])]
         least_contact = config.contact_keep * min(result.surface_contact.values())
         most_distance = result.mean_distance + config.error_slack
-        score = None
-        for move in moves:
-            shift = float(np.linalg.norm(move))
-            if shift < config.min_move:
-                continue
-            moved = T.copy()
-            moved[:3, 3] += move
-            score = score or PoseScorer(self.gripper, self.obj, self.fit_config, q)
-            scored = score(moved)  # first: a tenth of a collision check's cost
-            if not (scored.surface_contact.min() > 0.0
+
+        def passes(scorer: PoseScorer, pose: np.ndarray) -> bool:
+            scored = scorer(pose)  # a rescoring: a tenth of a collision check's cost
+            return (scored.surface_contact.min() > 0.0
                     and scored.surface_contact.min() >= least_contact
-                    and scored.mean_distance <= most_distance):
-                continue
-            check = self.checker.check(moved, q)
-            if check.collision_free:
-                return Centred(score_fit(self.gripper, self.obj, moved, q, self.fit_config,
-                                         result.status, result.history, result.time),
-                               check, shift)
+                    and scored.mean_distance <= most_distance)
+
+        score = None
+        for whole in wholes:
+            guess = q  # where the next re-closing starts: the joints the last one found
+            for fraction in config.fractions:
+                move = fraction * whole
+                shift = float(np.linalg.norm(move))
+                if shift < config.min_move:
+                    continue
+                moved = T.copy()
+                moved[:3, 3] += move
+                score = score or PoseScorer(self.gripper, self.obj, self.fit_config, q)
+                if passes(score, moved):
+                    slid = self._checked(result, moved, q, shift)
+                    if slid is not None:
+                        return slid
+                if config.reclose:
+                    guess = reclose_joints(self.gripper, self.obj, moved, guess)
+                    if passes(PoseScorer(self.gripper, self.obj, self.fit_config, guess), moved):
+                        slid = self._checked(result, moved, guess, shift)
+                        if slid is not None:
+                            return slid
         return stays
+
+    def _checked(self, result: FitResult, T: np.ndarray, q: np.ndarray,
+                 shift: float) -> Centred | None:
+        """The slid state ``(T, q)`` of ``result`` when the plan's collision check passes it,
+        else None."""
+        check = self.checker.check(T, q)
+        if not check.collision_free:
+            return None
+        return Centred(score_fit(self.gripper, self.obj, T, q, self.fit_config, result.status,
+                                 result.history, result.time), check, shift)

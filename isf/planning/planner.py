@@ -136,8 +136,9 @@ class Grasp:
             ranks after the settled grasps within it, before the unsettled ones); None
             otherwise.
         centred: True when the grasp was slid toward the centre of mass after its fit (and
-            repair) (:mod:`isf.planning.centring`): then ``fit`` is the slid grasp, whose
-            ``history`` ends before the slide.
+            repair) (:mod:`isf.planning.centring`): then ``fit`` is the slid grasp (its joints
+            re-closed onto the object when the slide needed it), whose ``history`` ends before
+            the slide.
         duplicate_of: the rank (from 1) of the better grasp this one repeats (within the
             run's :class:`isf.planning.diversity.Diversity`), or None for a distinct grasp.
         quality: what its contacts resist (:func:`isf.quality.grasp_quality.grasp_quality`), computed for
