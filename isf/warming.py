@@ -239,7 +239,7 @@ def _plane() -> ObjectSurface:
 def _warm_checks() -> None:
     """The kernels of the collision checks and the repair, and the engine's kernels that only
     finished fits, the repair and the centring call (a fit's score, nearest points, the
-    correspondence filter, the finger step's box QP). Those that need no k-d tree and no
+    correspondence filter, the finger step's bounded solve). Those that need no k-d tree and no
     kinematics come first: the engine's part compiles both at once, and they are then in the
     cache when this part needs them."""
     points = np.random.default_rng(0).uniform(-0.01, 0.01, (50, 3))
@@ -256,7 +256,7 @@ def _warm_checks() -> None:
     search.query_within(points[:2], 0.01)  # a bounded search
     plane, T = _plane(), _pad_pose()
     score_fit(_tiny_gripper(), plane, T, np.zeros(1), FitConfig(), FitStatus.CONVERGED, (), 0.0)
-    reclose_joints(_tiny_gripper(), plane, T, np.zeros(1))  # the centring's box QP, from Python
+    reclose_joints(_tiny_gripper(), plane, T, np.zeros(1))  # the finger step's solve, from Python
     plane.nearest(plane.points[:2])  # as the collision repair asks
     match(plane, plane.points[:8] + [0.0, 0.0, 0.001], outlier_factor=3.0, outlier_floor=0.005,
           reject_duplicates=True)

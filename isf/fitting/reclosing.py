@@ -16,7 +16,8 @@ import numpy as np
 
 from ..gripper.model import Gripper
 from ..object.surface import ObjectSurface
-from ._box_qp import solve_box_qps
+from ._box_qp import KKT_TOLERANCE, MAX_ROUNDS
+from ._finger_step import bounded_steps
 
 __all__ = ["reclose_joints"]
 
@@ -41,8 +42,9 @@ def reclose_joints(gripper: Gripper, obj: ObjectSurface, T_object_gripper: np.nd
     those of pyramid level ``RECLOSE_LEVEL``) is matched to its nearest object point ``o``
     with outward normal ``m``, and the joints move by the step, within the joint limits,
     that zeroes the point-to-plane distances ``m . (p - o)`` in the least-squares sense to
-    first order, through the contact points' Jacobians, damped by ``RECLOSE_DAMPING``
-    (the box-constrained QP of the finger step).
+    first order, through the contact points' Jacobians, damped by ``RECLOSE_DAMPING``: the
+    finger step's bounded solve (``isf.fitting._finger_step.bounded_steps``: the clipped
+    minimiser for one joint, the active set for more).
     Points farther than ``RECLOSE_REACH`` from the object, or whose outward normal does not
     face the object's (a pad's back or rim), take no part.
 
@@ -60,7 +62,6 @@ def reclose_joints(gripper: Gripper, obj: ObjectSurface, T_object_gripper: np.nd
     R, t = T[:3, :3], T[:3, 3]
     q = np.asarray(q, dtype=float).copy()
     mask = gripper.level_mask(RECLOSE_LEVEL)
-    damping = RECLOSE_DAMPING ** 2 * np.eye(len(q))
     for _ in range(iterations):
         kin = gripper.contact_kinematics(q, mask)
         points = kin.points @ R.T + t
@@ -72,8 +73,9 @@ def reclose_joints(gripper: Gripper, obj: ObjectSurface, T_object_gripper: np.nd
             break
         residual = np.einsum("ij,ij->i", m[use], points[use] - obj.points[nearest[use]])
         A = np.einsum("ij,ijk->ik", m[use] @ R, kin.J_points[use])  # d(residual)/dq, (M, n)
-        step, _ = solve_box_qps((A.T @ A + damping)[None], (-A.T @ residual)[None],
-                                (gripper.lower - q)[None], (gripper.upper - q)[None])
+        step, _ = bounded_steps((A.T @ A)[None], (-A.T @ residual)[None],
+                                (gripper.lower - q)[None], (gripper.upper - q)[None],
+                                RECLOSE_DAMPING ** 2, MAX_ROUNDS, KKT_TOLERANCE)
         q = np.clip(q + step[0], gripper.lower, gripper.upper)
         if np.abs(step).max() < RECLOSE_SETTLED:
             break
