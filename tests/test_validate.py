@@ -225,6 +225,34 @@ def test_closing_tags_are_checked(tmp_path):
             isf.load_gripper(path)
 
 
+def test_a_vendor_files_undeclared_prefix_is_read_without_yourdfpys_log(tmp_path, caplog,
+                                                                        flat_parallel):
+    """The Robotiq 2F-85 URDF writes ``drake:`` elements without declaring the prefix; yourdfpy
+    logs two errors for each read of such a file (then reads it another way). The simulation's
+    and the viewer's reads stay quiet and leave yourdfpy's logger as they found it."""
+    import logging
+
+    import yourdfpy
+
+    from isf.viewer.gripper_meshes import GripperMeshes
+
+    path = tmp_path / "vendor.urdf"
+    path.write_text(flat_parallel.urdf_path.read_text().replace(
+        "</robot>", '<drake:collision_filter_group name="pads"/></robot>'))
+    gripper = isf.load_gripper(path)
+    caplog.set_level(logging.DEBUG)
+    level = logging.getLogger("yourdfpy").level
+    yourdfpy.URDF.load(str(path), load_meshes=False, build_scene_graph=False,
+                       build_collision_scene_graph=False)
+    assert [r for r in caplog.records if r.name.startswith("yourdfpy")
+            and r.levelno >= logging.ERROR], "the file no longer makes yourdfpy log"
+    caplog.clear()
+    build_world(gripper, _box(0.04), _T_object_gripper(), np.array([0.02]), SimulationSettings())
+    GripperMeshes(path)
+    assert not [r for r in caplog.records if r.name.startswith("yourdfpy")]
+    assert logging.getLogger("yourdfpy").level == level
+
+
 def test_tag_suggests_the_franka_hands_closing_sign(tmp_path):
     """The Franka hand's finger joint opens with +q (its range is [0, 0.04] m, 0 = closed)."""
     from isf.assets import vendor_gripper

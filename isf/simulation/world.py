@@ -26,6 +26,7 @@ import numpy as np
 
 from ..exceptions import InvalidInputError
 from ..gripper.model import Gripper
+from ..gripper.yourdfpy_reading import read_urdf
 from .object_body import ObjectBody, convex_parts
 from .settings import SimulationSettings
 
@@ -80,13 +81,11 @@ def _quat(R: np.ndarray) -> list[float]:
 
 
 def _urdf(gripper: Gripper):
-    import yourdfpy
-
     if gripper.urdf_path is None:
         raise InvalidInputError(f"gripper {gripper.name!r} has no URDF file: load it with "
                                 "isf.load_gripper to simulate it")
-    return yourdfpy.URDF.load(str(gripper.urdf_path), load_meshes=False, build_scene_graph=False,
-                              build_collision_scene_graph=False).robot
+    return read_urdf(gripper.urdf_path, load_meshes=False, build_scene_graph=False,
+                     build_collision_scene_graph=False).robot
 
 
 def _add_mesh_geom(spec, body, name: str, vertices: np.ndarray, faces: np.ndarray,

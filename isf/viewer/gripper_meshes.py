@@ -9,7 +9,6 @@ joint values; ``T_object_gripper`` places the gripper in the object frame, as in
 
 from __future__ import annotations
 
-import logging
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,6 +18,7 @@ import trimesh
 
 from ..exceptions import GripperDescriptionError, InvalidInputError
 from ..gripper.mesh_paths import resolve_mesh_path
+from ..gripper.yourdfpy_reading import read_urdf
 
 __all__ = ["GEOMETRIES", "GripperMeshes", "MeshPart"]
 
@@ -60,8 +60,6 @@ class GripperMeshes:
                  package_dirs: Mapping[str, str | Path] | None = None):
         if geometry not in GEOMETRIES:
             raise InvalidInputError(f"geometry {geometry!r}: choose one of {', '.join(GEOMETRIES)}")
-        import yourdfpy
-
         path = Path(urdf_path)
         urdf_dir = path.parent
 
@@ -69,10 +67,9 @@ class GripperMeshes:
             return str(resolve_mesh_path(fname, urdf_dir, package_dirs))
 
         collision = geometry == "collision"
-        logging.getLogger("yourdfpy").setLevel(logging.CRITICAL)  # it logs unknown isf:* tags
         try:
-            self._urdf = yourdfpy.URDF.load(
-                str(path), build_scene_graph=not collision, load_meshes=not collision,
+            self._urdf = read_urdf(
+                path, build_scene_graph=not collision, load_meshes=not collision,
                 build_collision_scene_graph=collision, load_collision_meshes=collision,
                 force_collision_mesh=False, filename_handler=find)
         except Exception as exc:  # yourdfpy raises many kinds on a bad file
