@@ -4,7 +4,9 @@
 (:mod:`isf.gripper.urdf_tags`), builds the Pinocchio model (:mod:`isf.gripper.urdf_model`),
 resolves mesh paths (:mod:`isf.gripper.mesh_paths`) and samples the tagged contact surfaces
 (:mod:`isf.gripper.surface_sampling`); :mod:`isf.gripper.chain` evaluates the kinematics in
-compiled code; :mod:`isf.gripper.bundled` lists the grippers shipped with isf.
+compiled code; :mod:`isf.gripper.bundled` lists the grippers shipped with isf;
+:mod:`isf.gripper.yourdfpy_reading` reads a URDF with yourdfpy, without its log, for the link
+meshes the viewer draws and the simulation collides.
 """
 
 from ..exports import lazy_exports
