@@ -185,6 +185,8 @@ class GraspCentring:
                         return slid
                 if config.reclose:
                     guess = reclose_joints(self.gripper, self.obj, moved, guess)
+                    if np.array_equal(guess, q):  # the state just tried with the fit's joints
+                        continue
                     if passes(PoseScorer(self.gripper, self.obj, self.fit_config, guess), moved):
                         slid = self._checked(result, moved, guess, shift)
                         if slid is not None:
