@@ -131,6 +131,42 @@ def test_contact_model_of_a_centred_box_grasp():
     assert best.quality.force_closure and best.quality.epsilon > 0
 
 
+def test_squeeze_imbalance_by_hand():
+    """The net push of equal squeezes, |sum of the surfaces' unit normals| / surfaces, by hand:
+    opposing pads (their four corners each) cancel; two pads whose normals are turned by a
+    from opposite push sin(a) per pad; three fingertips 120 degrees apart cancel; three on one
+    face against a thumb push (3 - 1) / 4; no contacts push 1."""
+    props = ObjectProperties(ORIGIN, 0.05)
+
+    def imbalance(contacts, friction=0.5):
+        quality = contacts_quality(contacts, props, QualityConfig(friction=friction))
+        return quality.squeeze_imbalance, quality.squeeze_balanced
+
+    assert imbalance(antipodal_patches()) == (pytest.approx(0.0, abs=1e-12), True)
+    for degrees, balanced in ((50.0, True), (70.0, False)):  # sin(a / 2) against mu = 0.5
+        a = np.radians(degrees)
+        turned = Contacts.from_points([(0.03, 0, 0), (-0.03, 0, 0)],
+                                      [(-1, 0, 0), (np.cos(a), np.sin(a), 0)])
+        value, is_balanced = imbalance(turned)
+        assert value == pytest.approx(np.sin(a / 2))
+        assert is_balanced is balanced
+        assert imbalance(turned, friction=0.6)[1]  # sin(35 degrees) = 0.57 <= 0.6
+    angles = 2 * np.pi * np.arange(3) / 3
+    ring = np.stack([np.cos(angles), np.sin(angles), np.zeros(3)], axis=1)
+    assert imbalance(Contacts.from_points(0.03 * ring, -ring))[0] == pytest.approx(0.0, abs=1e-12)
+    hand = Contacts.from_points([(-0.03, y, 0) for y in (-0.02, 0.0, 0.02)] + [(0.03, 0, 0)],
+                                [(1, 0, 0)] * 3 + [(-1, 0, 0)])
+    assert imbalance(hand, friction=0.45) == (pytest.approx(0.5), False)
+    assert imbalance(hand, friction=0.55) == (pytest.approx(0.5), True)
+    # one surface with several contacts pushes along their mean normal
+    pad = Contacts.from_points([(-0.03, 0, 0.01), (-0.03, 0, -0.01), (0.03, 0, 0)],
+                               [(1, 0, 0.2), (1, 0, -0.2), (-1, 0, 0)], surface=[0, 0, 1])
+    assert imbalance(pad)[0] == pytest.approx(0.0, abs=1e-12)
+    empty = Contacts.from_points(np.empty((0, 3)), np.empty((0, 3)))
+    assert imbalance(empty) == (1.0, False)
+    assert contacts_quality(hand, props).to_dict()["squeeze_imbalance"] == pytest.approx(0.5)
+
+
 def test_quality_config_rejects_bad_values():
     with pytest.raises(isf.InvalidInputError, match="friction"):
         QualityConfig(friction=-0.1)
@@ -342,16 +378,19 @@ def test_margins_below_the_target_are_ordered_as_their_values():
     from isf.quality import MARGIN_TARGET, quality_rank_key
 
     rng = np.random.default_rng(11)
-    qualities = []
+    qualities, normals_of = [], []
     for k in range(30):  # three to five point contacts on a 3 cm sphere, pushing inwards
         points, normals, properties = sphere_contacts(rng, 3, 6)
         for shift in (0.0, 1e-9, 1e-6, 1e-4) if k % 3 == 0 else (0.0,):
             contacts = Contacts.from_points(points + shift * rng.normal(size=points.shape),
                                             normals)
             qualities.append(contacts_quality(contacts, properties, QualityConfig(mass=1.0)))
+            normals_of.append(normals / np.linalg.norm(normals, axis=1, keepdims=True))
     lazy = sorted(range(len(qualities)), key=lambda k: quality_rank_key(qualities[k], 0.0))
     held = [min(q.min_margin, MARGIN_TARGET) for q in qualities]
-    full = sorted(range(len(qualities)),
-                  key=lambda k: (-held[k], qualities[k].com_offset, -qualities[k].epsilon))
+    pushes = [np.linalg.norm(n.sum(axis=0)) / len(n) > 0.5 for n in normals_of]
+    full = sorted(range(len(qualities)), key=lambda k: (pushes[k], -held[k],
+                                                        qualities[k].com_offset,
+                                                        -qualities[k].epsilon))
     assert lazy == full
     assert sum(0 < h < MARGIN_TARGET for h in held) >= 15

@@ -31,12 +31,23 @@ def test_quality_ranking_puts_resisting_grasps_first(plans, paper_gripper, cylin
     # the fit ranking is the paper's: by mean distance within each validity class
     keys = [g.sort_key() for g in by_fit.grasps]
     assert keys == sorted(keys)
-    # independently recomputed: no valid grasp holds better than the top one, and among those
-    # that hold as well, none has its contacts nearer the centre of mass
+    # independently recomputed: no valid grasp whose equal squeeze friction can absorb holds
+    # better than the top one, and among those that hold as well, none has its contacts
+    # nearer the centre of mass
     properties = object_properties(cylinder)
+    valid = [g for g in by_fit.grasps if g.valid]
+
+    def balanced(grasp) -> bool:
+        contacts = isf.quality.grasp_contacts(paper_gripper, cylinder, grasp.T_object_gripper,
+                                              grasp.q, by_quality.quality.contact_model)
+        normals = [contacts.normals[contacts.surface == s].mean(axis=0)
+                   for s in np.unique(contacts.surface)]
+        push = sum(n / np.linalg.norm(n) for n in normals)
+        return bool(normals) and np.linalg.norm(push) / len(normals) <= by_quality.quality.friction
+
+    valid = [g for g in valid if balanced(g)] or valid
     recomputed = [grasp_quality(paper_gripper, cylinder, g.T_object_gripper, g.q,
-                                by_quality.quality, properties)
-                  for g in by_fit.grasps if g.valid]
+                                by_quality.quality, properties) for g in valid]
     assert recomputed
     held = [min(q.min_margin, MARGIN_TARGET) for q in recomputed]
     best = by_quality.best.quality
@@ -52,8 +63,9 @@ def test_quality_ranking_puts_resisting_grasps_first(plans, paper_gripper, cylin
 def _full_key(grasp) -> tuple:
     """The ranking key with every metric computed, epsilon included (the reference order)."""
     q = grasp.quality
-    quality = ((1, 0.0, 0.0, 0.0) if q is None else
-               (0, -min(q.min_margin, MARGIN_TARGET), q.com_offset, -q.epsilon))
+    quality = ((1, True, 0.0, 0.0, 0.0) if q is None else
+               (0, not q.squeeze_balanced, -min(q.min_margin, MARGIN_TARGET), q.com_offset,
+                -q.epsilon))
     return (not grasp.collision_free, not grasp.in_contact, not grasp.one_piece,
             grasp.settled is False, *quality, grasp.fit.mean_distance, grasp.sample_index)
 
@@ -129,18 +141,21 @@ def test_margins_ordered_by_bounds_as_by_their_values():
     from isf.quality import Contacts, quality_rank_key
 
     rng = np.random.default_rng(4)
-    qualities = []
+    qualities, pushes = [], []
     for k in range(40):  # three or four point contacts on a 3 cm sphere, pushing inwards
         points, normals, properties = sphere_contacts(rng, 3, 5)
         for shift in (0.0, 1e-12) if k % 4 == 0 else (0.0,):
             contacts = Contacts.from_points(points + shift, normals)
             qualities.append(isf.quality.contacts_quality(contacts, properties,
                                                           QualityConfig(mass=1.0)))
+            unit = normals / np.linalg.norm(normals, axis=1, keepdims=True)
+            pushes.append(np.linalg.norm(unit.sum(axis=0)) / len(unit) > 0.5)
     lazy = sorted(range(len(qualities)), key=lambda k: quality_rank_key(qualities[k], 0.0))
     computed = sum("held_margin" in q.__dict__ and 0 < q.held_margin < MARGIN_TARGET
                    for q in qualities)
     below = sum(0 < q.min_margin < MARGIN_TARGET for q in qualities)  # now every value
-    full = sorted(range(len(qualities)), key=lambda k: (-min(qualities[k].min_margin,
+    full = sorted(range(len(qualities)), key=lambda k: (pushes[k],
+                                                        -min(qualities[k].min_margin,
                                                              MARGIN_TARGET),
                                                         qualities[k].com_offset,
                                                         -qualities[k].epsilon))

@@ -49,8 +49,9 @@ whose fingers keep within their local depth bound (:mod:`isf.scene.finger_depth`
 point-to-plane distance
 (lower first): the paper's ranking, ``rank="fit"``. By default (``rank="quality"``) the valid
 grasps are ranked by what their contacts resist instead (:mod:`isf.quality`:
-:func:`isf.quality.grasp_quality.quality_rank_key`: holding their weight in every gravity direction first, then
-contacts nearest the centre of mass, then the Ferrari-Canny epsilon, then the fitting error),
+:func:`isf.quality.grasp_quality.quality_rank_key`: a balanced squeeze first, then holding
+their weight in every gravity direction, then contacts nearest the centre of mass, then the
+Ferrari-Canny epsilon, then the fitting error),
 ahead of the others in the order above.
 After the ranking, distinct grasps come first: a grasp within 1 cm and 30 degrees
 (about the TCP, under the gripper's symmetry) of a better one is marked ``duplicate_of`` and

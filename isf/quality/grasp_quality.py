@@ -6,9 +6,11 @@ edge wrenches about the object's centre of mass (:func:`object_properties`), and
 Ferrari-Canny epsilon, force closure and the largest gravity load per direction
 (:mod:`isf.quality.wrenches`, :mod:`isf.quality.gravity`) as a :class:`GraspQuality`.
 
-Ranking (:func:`quality_rank_key`, the planner's default ``rank="quality"``): grasps that resist
-their weight in every gravity direction (smallest margin >= :data:`MARGIN_TARGET`) tie on the
-first criterion; the others follow, higher smallest margin first. Then the grasp whose contacts'
+Ranking (:func:`quality_rank_key`, the planner's default ``rank="quality"``): grasps whose
+squeeze is balanced (:attr:`GraspQuality.squeeze_balanced`: with every contact surface pressing
+equally hard, friction can absorb the net push) first; then grasps that resist their weight in
+every gravity direction (smallest margin >= :data:`MARGIN_TARGET`) tie; the others follow,
+higher smallest margin first. Then the grasp whose contacts'
 centroid lies nearer the centre of mass first (:attr:`GraspQuality.com_offset`: the smaller the
 gravity torques it must resist, the less its hold depends on the contact model's torsion, which
 corner contacts overstate for a real pad, and on the mass distribution), then higher epsilon,
@@ -193,6 +195,11 @@ class GraspQuality:
         radius: the object radius torques were divided by, metres.
         com_offset: distance from the centroid of the contacts to the centre of mass, metres
             (the object radius when there are no contacts).
+        squeeze_imbalance: the net push on the object when every touching contact surface
+            presses with the same normal force along its mean inward normal ``n_s``, per unit
+            of that force and per surface: ``|sum_s n_s| / S`` over the ``S`` touching
+            surfaces, in [0, 1] (0: the pushes cancel; 1: they all push one way, or there are
+            no contacts). See :attr:`squeeze_balanced`.
     """
 
     def __init__(self, contacts: Contacts, properties: ObjectProperties,
@@ -206,6 +213,7 @@ class GraspQuality:
         self.com_offset = (float(np.linalg.norm(contacts.points.mean(axis=0)
                                                 - properties.center_of_mass))
                            if contacts.count else self.radius)
+        self.squeeze_imbalance = _squeeze_imbalance(contacts)
         self._weight = config.mass * GRAVITY
         self._balance = (_LoadBalance(contacts, config.friction, properties.center_of_mass,
                                       config.grip_force, config.cone_edges, properties.radius)
@@ -338,6 +346,18 @@ class GraspQuality:
         return min(self.gravity_margin.values(), default=0.0)
 
     @property
+    def squeeze_balanced(self) -> bool:
+        """True when friction can absorb the net push of an equal squeeze:
+        :attr:`squeeze_imbalance` <= :attr:`friction`. With each of ``S`` surfaces pressing with
+        normal force ``F``, the pushes sum to ``F |sum_s n_s|`` and the friction forces to at
+        most ``mu F S``: the object can stay put while a gripper closes with force-bounded
+        fingers (as ``isf validate``'s do) only if this holds. For two pads it says their
+        normals are within ``2 asin(mu)`` of opposite (60 degrees at ``mu`` 0.5); three
+        fingertips 120 degrees apart, or one pad opposing another, give 0; a hand's three
+        fingers on one face against its thumb give 0.5."""
+        return self.squeeze_imbalance <= self.friction
+
+    @property
     def holds(self) -> bool:
         """True when the grasp resists its weight in every direction (margin >= 1)."""
         return self.held_margin >= MARGIN_TARGET
@@ -348,7 +368,18 @@ class GraspQuality:
                 "force_closure": self.force_closure, "gravity_load": dict(self.gravity_load),
                 "gravity_margin": dict(self.gravity_margin), "min_margin": self.min_margin,
                 "contacts": self.contacts, "patches": self.patches, "radius": self.radius,
-                "com_offset": self.com_offset}
+                "com_offset": self.com_offset, "squeeze_imbalance": self.squeeze_imbalance}
+
+
+def _squeeze_imbalance(contacts: Contacts) -> float:
+    """:attr:`GraspQuality.squeeze_imbalance` of a contact model: the length of the mean of
+    the touching surfaces' unit mean inward normals; 1.0 without contacts."""
+    surfaces = np.unique(contacts.surface)
+    if not len(surfaces):
+        return 1.0
+    normals = np.array([contacts.normals[contacts.surface == s].mean(axis=0) for s in surfaces])
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    return float(np.linalg.norm(normals.sum(axis=0)) / len(surfaces))
 
 
 def contacts_quality(contacts: Contacts, properties: ObjectProperties,
@@ -475,12 +506,14 @@ class _HigherEpsilonFirst:
 
 
 def quality_rank_key(quality: GraspQuality | None, mean_distance: float) -> tuple:
-    """Sort key (lower first) of a grasp by its quality (higher smallest gravity margin up to
-    :data:`MARGIN_TARGET`, :attr:`GraspQuality.held_margin`, first: compared by bounds where
-    they settle the order; then :attr:`GraspQuality.com_offset`, then higher epsilon, read
-    only to break a tie of the two before it), then its fitting error ``mean_distance``
-    (metres); a grasp without a quality record (None) comes after every grasp with one."""
+    """Sort key (lower first) of a grasp by its quality (a balanced squeeze,
+    :attr:`GraspQuality.squeeze_balanced`, first; then higher smallest gravity margin up to
+    :data:`MARGIN_TARGET`, :attr:`GraspQuality.held_margin`: compared by bounds where they
+    settle the order; then :attr:`GraspQuality.com_offset`, then higher epsilon, read only to
+    break a tie of those before it), then its fitting error ``mean_distance`` (metres); a
+    grasp without a quality record (None) comes after every grasp with one."""
     if quality is None:
-        return (1, _HigherMarginFirst(None), 0.0, _HigherEpsilonFirst(None), mean_distance)
-    return (0, _HigherMarginFirst(quality), quality.com_offset, _HigherEpsilonFirst(quality),
-            mean_distance)
+        return (1, True, _HigherMarginFirst(None), 0.0, _HigherEpsilonFirst(None),
+                mean_distance)
+    return (0, not quality.squeeze_balanced, _HigherMarginFirst(quality), quality.com_offset,
+            _HigherEpsilonFirst(quality), mean_distance)
