@@ -55,15 +55,22 @@ def _box(width: float):
     return object_body(mesh.vertices, mesh.faces, 0.3)
 
 
-def _tapered_prism(alpha: float, half_width: float, height: float = 0.03, length: float = 0.03):
+def _tapered_prism_mesh(alpha: float, half_width: float, height: float = 0.03,
+                        length: float = 0.03):
     """A prism along x whose half-width in y is ``half_width + z tan(alpha)`` (z from -h/2 to h/2):
-    widest towards the fingertips, where no finger geometry lies beyond the pads."""
+    widest towards the fingertips, where no finger geometry lies beyond the pads (a
+    ``trimesh.Trimesh``)."""
     import trimesh
 
     section = [(-height / 2, half_width - height / 2 * math.tan(alpha)),
                (height / 2, half_width + height / 2 * math.tan(alpha))]
     corners = [(x, s * w, z) for x in (-length / 2, length / 2) for z, w in section for s in (-1, 1)]
-    mesh = trimesh.convex.convex_hull(np.array(corners))
+    return trimesh.convex.convex_hull(np.array(corners))
+
+
+def _tapered_prism(alpha: float, half_width: float, height: float = 0.03, length: float = 0.03):
+    """The simulated body of :func:`_tapered_prism_mesh`."""
+    mesh = _tapered_prism_mesh(alpha, half_width, height, length)
     return object_body(mesh.vertices, mesh.faces, 0.3)
 
 
@@ -90,6 +97,14 @@ def test_tapered_faces_hold_only_inside_the_friction_cone(flat_parallel, alpha_d
     else:
         assert result.outcome in (Outcome.EJECTED, Outcome.SLIPPED), result
         assert result.held_directions < 6
+    # the ranking's squeeze: two pads on faces leaning alpha push sin(alpha) per pad, and the
+    # grasp the simulation squeezes out is the one whose push friction cannot absorb
+    # (sin 40 degrees = 0.64 > mu; sin 10 degrees = 0.17)
+    obj = isf.load_object(_tapered_prism_mesh(alpha, half_width), voxel_size=0.001)
+    quality = isf.quality.grasp_quality(flat_parallel, obj, _T_object_gripper(), q,
+                                        isf.quality.QualityConfig(friction=settings.friction))
+    assert quality.squeeze_imbalance == pytest.approx(math.sin(alpha), abs=0.02)
+    assert quality.squeeze_balanced == held
 
 
 def test_a_grasp_sunk_into_the_object_is_penetrating(flat_parallel):
