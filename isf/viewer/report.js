@@ -151,13 +151,13 @@
   const list = document.getElementById("list");
   list.innerHTML = "<table><thead><tr><th>rank</th><th>valid</th><th>collision-free</th>" +
     "<th>mean distance, mm</th><th>clearance, mm</th><th>penetration, mm</th><th>iterations</th>" +
-    "<th>status</th><th>epsilon</th><th>gravity margin</th><th>physics</th></tr></thead><tbody>" + data.grasps.map((g, n) =>
+    "<th>status</th><th>squeeze imbalance</th><th>epsilon</th><th>gravity margin</th><th>physics</th></tr></thead><tbody>" + data.grasps.map((g, n) =>
       "<tr class=grasp data-index=" + n + " title='" + (g.repaired ? "repaired; " : "") + (g.centred ? "centred; " : "") +
       (g.duplicate_of ? "duplicate of " + g.duplicate_of + "; " : "") +
       (g.colliding_links.length ? "colliding: " + g.colliding_links.join(", ") : "") + "'><td>" + g.rank + "</td>" +
       yes(g.valid) + yes(g.collision_free) + "<td>" + mm(g.mean_distance) + "</td><td>" + mm(g.clearance) +
       "</td><td>" + mm(g.penetration) + "</td><td>" + g.iterations + "</td><td>" + g.status + "</td><td>" +
-      num(g.epsilon) + "</td><td>" + num(g.min_margin) + "</td><td>" + (g.physics || "-") + "</td></tr>").join("") +
+      num(g.squeeze_imbalance) + "</td><td>" + num(g.epsilon) + "</td><td>" + num(g.min_margin) + "</td><td>" + (g.physics || "-") + "</td></tr>").join("") +
     "</tbody></table>";
 
   function choose(n) {
