@@ -205,12 +205,13 @@ COM_BANDS = (0.0, 0.01, 0.02, 0.03, np.inf)
 
 def every_valid(gripper, obj, body, settings) -> dict:
     """Every valid grasp of one ``quality`` plan simulated: their outcomes, distances from the
-    centre of mass (m) and smallest gravity margins, in the plan's order."""
+    centre of mass (m), smallest gravity margins and squeeze imbalances, in the plan's order."""
     grasps = [g for g in plan(gripper, obj).grasps if g.valid]
     return {"outcomes": [validate_grasp(gripper, body, g.T_object_gripper, g.q, settings)
                          .outcome.value for g in grasps],
             "com_offsets": [g.quality.com_offset for g in grasps],
-            "margins": [g.quality.min_margin for g in grasps]}
+            "margins": [g.quality.min_margin for g in grasps],
+            "squeeze_imbalances": [g.quality.squeeze_imbalance for g in grasps]}
 
 
 def roc_area(scores, positive) -> float:
@@ -246,8 +247,42 @@ def every_valid_report(rows: list[dict]) -> list[str]:
             f"{', '.join(bands)}. Area under the ROC curve of the smallest margin "
             f"{roc_area(margins, held):.2f}, of the distance (nearer first) "
             f"{roc_area(list(-offsets), held):.2f}. The best any ranking of these plans could "
-            f"reach: top-1 {best1}/{len(mine)}, top-5 {best5}/{TOP * len(mine)}.")
+            f"reach: top-1 {best1}/{len(mine)}, top-5 {best5}/{TOP * len(mine)}."
+            + squeeze_report(mine))
     return lines
+
+
+def squeeze_report(rows: list[dict]) -> str:
+    """What the squeeze imbalance says of one gripper's simulated valid grasps (rows with
+    ``squeeze_imbalances``; an empty string for raw files written without them)."""
+    if not all("squeeze_imbalances" in r for r in rows):
+        return ""
+    outcomes = [o for r in rows for o in r["outcomes"] if o != "penetrating"]
+    pushes = [p for r in rows for o, p in zip(r["outcomes"], r["squeeze_imbalances"])
+              if o != "penetrating"]
+    balanced = [p <= FRICTION for p in pushes]
+
+    def count(is_balanced: bool, outcome: str) -> int:
+        return sum(b == is_balanced and o == outcome for b, o in zip(balanced, outcomes))
+
+    return (f" Of those not flagged penetrating, the squeeze imbalance (lower first) separates the "
+            f"ones not ejected with an area under the ROC curve of "
+            f"{roc_area([-p for p in pushes], [o != 'ejected' for o in outcomes]):.2f} and the "
+            f"held ones {roc_area([-p for p in pushes], [o == 'held' for o in outcomes]):.2f} "
+            f"(the smallest margin: {_roc_pair(rows, 'margins', outcomes, 1.0)}, the distance "
+            f"from the centre of mass, nearer first: {_roc_pair(rows, 'com_offsets', outcomes, -1.0)}); "
+            f"of the {sum(balanced)} balanced (imbalance <= friction {FRICTION}) "
+            f"{count(True, 'ejected')} were ejected and {count(True, 'held')} held, of the "
+            f"{len(balanced) - sum(balanced)} others {count(False, 'ejected')} and "
+            f"{count(False, 'held')}.")
+
+
+def _roc_pair(rows: list[dict], key: str, outcomes: list[str], sign: float) -> str:
+    """The areas under the ROC curve of ``sign`` times ``key`` separating the not ejected and
+    the held grasps (``outcomes``, penetrating ones left out) from the rest: "a and b"."""
+    scores = [sign * v for r in rows for o, v in zip(r["outcomes"], r[key]) if o != "penetrating"]
+    return (f"{roc_area(scores, [o != 'ejected' for o in outcomes]):.2f} and "
+            f"{roc_area(scores, [o == 'held' for o in outcomes]):.2f}")
 
 
 def main() -> None:

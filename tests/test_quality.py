@@ -153,7 +153,10 @@ def test_squeeze_imbalance_by_hand():
         assert imbalance(turned, friction=0.6)[1]  # sin(35 degrees) = 0.57 <= 0.6
     angles = 2 * np.pi * np.arange(3) / 3
     ring = np.stack([np.cos(angles), np.sin(angles), np.zeros(3)], axis=1)
-    assert imbalance(Contacts.from_points(0.03 * ring, -ring))[0] == pytest.approx(0.0, abs=1e-12)
+    fingertips = Contacts.from_points(0.03 * ring, -ring)
+    assert imbalance(fingertips)[0] == pytest.approx(0.0, abs=1e-12)
+    assert imbalance(fingertips)[0] > 0.0  # rounding: the unit normals cancel to a few 1e-17
+    assert imbalance(fingertips, friction=0.0)[1]  # and count as cancelling without friction
     hand = Contacts.from_points([(-0.03, y, 0) for y in (-0.02, 0.0, 0.02)] + [(0.03, 0, 0)],
                                 [(1, 0, 0)] * 3 + [(-1, 0, 0)])
     assert imbalance(hand, friction=0.45) == (pytest.approx(0.5), False)

@@ -51,6 +51,11 @@ _SAME_CONTACTS = 1e-12
 this one record: the rounding of one fit reached twice (a few 1e-15), far below what any
 metric resolves (the feasibility tests' tolerance is 1e-9 of the load)."""
 
+_SQUEEZE_TOLERANCE = 1e-9
+""":attr:`GraspQuality.squeeze_balanced` allows the imbalance this far above the friction
+coefficient: the rounding of unit normals that cancel (a few 1e-16), so that opposing pads
+are balanced also without friction."""
+
 _MARGIN_SEPARATION = 1e-6
 """Bounds settle the order of two held margins only when they are this far apart (the
 feasibility tests' tolerance and the wrench space's joggle are far smaller); closer, the
@@ -355,7 +360,7 @@ class GraspQuality:
         normals are within ``2 asin(mu)`` of opposite (60 degrees at ``mu`` 0.5); three
         fingertips 120 degrees apart, or one pad opposing another, give 0; a hand's three
         fingers on one face against its thumb give 0.5."""
-        return self.squeeze_imbalance <= self.friction
+        return self.squeeze_imbalance <= self.friction + _SQUEEZE_TOLERANCE
 
     @property
     def holds(self) -> bool:
@@ -378,7 +383,7 @@ def _squeeze_imbalance(contacts: Contacts) -> float:
     if not len(surfaces):
         return 1.0
     normals = np.array([contacts.normals[contacts.surface == s].mean(axis=0) for s in surfaces])
-    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-12)
     return float(np.linalg.norm(normals.sum(axis=0)) / len(surfaces))
 
 
