@@ -257,18 +257,15 @@ def squeeze_report(rows: list[dict]) -> str:
     ``squeeze_imbalances``; an empty string for raw files written without them)."""
     if not all("squeeze_imbalances" in r for r in rows):
         return ""
-    outcomes = [o for r in rows for o in r["outcomes"] if o != "penetrating"]
-    pushes = [p for r in rows for o, p in zip(r["outcomes"], r["squeeze_imbalances"])
-              if o != "penetrating"]
-    balanced = [p <= FRICTION for p in pushes]
+    outcomes = _not_penetrating(rows, "outcomes")
+    balanced = [p <= FRICTION for p in _not_penetrating(rows, "squeeze_imbalances")]
 
     def count(is_balanced: bool, outcome: str) -> int:
         return sum(b == is_balanced and o == outcome for b, o in zip(balanced, outcomes))
 
     return (f" Of those not flagged penetrating, the squeeze imbalance (lower first) separates the "
-            f"ones not ejected with an area under the ROC curve of "
-            f"{roc_area([-p for p in pushes], [o != 'ejected' for o in outcomes]):.2f} and the "
-            f"held ones {roc_area([-p for p in pushes], [o == 'held' for o in outcomes]):.2f} "
+            f"ones not ejected and the held ones with areas under the ROC curve of "
+            f"{_roc_pair(rows, 'squeeze_imbalances', outcomes, -1.0)} "
             f"(the smallest margin: {_roc_pair(rows, 'margins', outcomes, 1.0)}, the distance "
             f"from the centre of mass, nearer first: {_roc_pair(rows, 'com_offsets', outcomes, -1.0)}); "
             f"of the {sum(balanced)} balanced (imbalance <= friction {FRICTION}) "
@@ -277,10 +274,15 @@ def squeeze_report(rows: list[dict]) -> str:
             f"{count(False, 'held')}.")
 
 
+def _not_penetrating(rows: list[dict], key: str) -> list:
+    """The values of ``key`` of the grasps not flagged penetrating, in order, over ``rows``."""
+    return [v for r in rows for o, v in zip(r["outcomes"], r[key]) if o != "penetrating"]
+
+
 def _roc_pair(rows: list[dict], key: str, outcomes: list[str], sign: float) -> str:
     """The areas under the ROC curve of ``sign`` times ``key`` separating the not ejected and
     the held grasps (``outcomes``, penetrating ones left out) from the rest: "a and b"."""
-    scores = [sign * v for r in rows for o, v in zip(r["outcomes"], r[key]) if o != "penetrating"]
+    scores = [sign * v for v in _not_penetrating(rows, key)]
     return (f"{roc_area(scores, [o != 'ejected' for o in outcomes]):.2f} and "
             f"{roc_area(scores, [o == 'held' for o in outcomes]):.2f}")
 

@@ -27,15 +27,8 @@ import numpy as np
 import bench_hold as bh
 import isf
 from isf.simulation import SimulationSettings, object_body, validate_grasp
-from isf.simulation.grasp_test import CLOSING_RAMP, closing_signs
+from isf.simulation.grasp_test import close_fingers, set_joints
 from isf.simulation.world import build_world
-
-
-def _pose_joints(world, qpos: np.ndarray, q: np.ndarray) -> None:
-    """Writes the actuated joints ``q`` and their ``<mimic>`` followers into ``qpos``."""
-    qpos[world.qpos_index] = q
-    for adr, leader, multiplier, offset in world.mimic_qpos:
-        qpos[adr] = multiplier * q[leader] + offset
 
 
 def _object_contacts(world, model, data):
@@ -57,25 +50,13 @@ def closing_record(gripper, body, grasp, settings: SimulationSettings) -> dict:
     surface_links = {surface.link for surface in gripper.surfaces}
     world = build_world(gripper, body, grasp.T_object_gripper, q, settings)
     model, data = world.model, mujoco.MjData(world.model)
-    _pose_joints(world, data.qpos, q)
+    set_joints(world, data.qpos, q)
     mujoco.mj_forward(model, data)
     depth = {True: 0.0, False: 0.0}  # deepest penetration (m, >= 0) of surface / other links
     for link, k in _object_contacts(world, model, data):
         on_surface = link in surface_links
         depth[on_surface] = max(depth[on_surface], -float(data.contact[k].dist))
-    signs = closing_signs(gripper, q)
-    opening = np.where(gripper.revolute, settings.open_revolute, settings.open_prismatic)
-    squeeze = np.where(gripper.revolute, settings.squeeze_revolute, settings.squeeze_prismatic)
-    start = np.clip(q - signs * opening, gripper.lower, gripper.upper)
-    goal = q + signs * squeeze
-    mujoco.mj_resetData(model, data)
-    _pose_joints(world, data.qpos, start)
-    mujoco.mj_forward(model, data)
-    steps = int(round(settings.close_time / settings.timestep))
-    ramp = max(1, int(CLOSING_RAMP * steps))
-    for step in range(steps):
-        data.ctrl[:] = start + min(1.0, (step + 1) / ramp) * (goal - start)
-        mujoco.mj_step(model, data)
+    close_fingers(gripper, world, data, q, settings)
     force = defaultdict(float)
     wrench = np.zeros(6)
     for link, k in _object_contacts(world, model, data):

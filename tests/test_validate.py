@@ -357,14 +357,14 @@ def test_the_pads_press_with_the_actuators_force_bound(flat_parallel):
     normal forces MuJoCo reports on the object sum to it."""
     import mujoco
 
-    from isf.simulation.grasp_test import _set_joints
+    from isf.simulation.grasp_test import set_joints
 
     settings = SimulationSettings()
     width = 0.04
     world = build_world(flat_parallel, _box(width), _T_object_gripper(), np.array([width / 2]),
                         settings)
     data = mujoco.MjData(world.model)
-    _set_joints(world, data.qpos, np.array([width / 2 + settings.open_prismatic]))
+    set_joints(world, data.qpos, np.array([width / 2 + settings.open_prismatic]))
     data.ctrl[:] = width / 2 - settings.squeeze_prismatic
     for _ in range(600):
         mujoco.mj_step(world.model, data)

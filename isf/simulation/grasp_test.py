@@ -28,7 +28,8 @@ from .object_body import ObjectBody
 from .settings import SimulationSettings
 from .world import GraspWorld, build_world
 
-__all__ = ["DIRECTIONS", "DirectionResult", "GraspValidation", "Outcome", "validate_grasp"]
+__all__ = ["DIRECTIONS", "DirectionResult", "GraspValidation", "Outcome", "close_fingers",
+           "closing_signs", "set_joints", "validate_grasp"]
 
 #: Gravity directions of the hold phase, in the world (object) frame.
 DIRECTIONS: dict[str, tuple[float, float, float]] = {
@@ -97,7 +98,9 @@ class GraspValidation:
                                              "rotation": d.rotation} for d in self.directions}}
 
 
-def _set_joints(world: GraspWorld, qpos: np.ndarray, q: np.ndarray) -> None:
+def set_joints(world: GraspWorld, qpos: np.ndarray, q: np.ndarray) -> None:
+    """Writes the actuated joints ``q`` (n_joints,) and their ``<mimic>`` followers into MuJoCo's
+    ``qpos``."""
     qpos[world.qpos_index] = q
     for adr, leader, multiplier, offset in world.mimic_qpos:
         qpos[adr] = multiplier * q[leader] + offset
@@ -138,6 +141,33 @@ def closing_signs(gripper: Gripper, q: np.ndarray) -> np.ndarray:
     return signs
 
 
+def close_fingers(gripper: Gripper, world: GraspWorld, data, q: np.ndarray,
+                  settings: SimulationSettings) -> np.ndarray:
+    """The closing of the test (step 2 of the module docstring) from a reset ``data``: the
+    fingers start ``open_*`` from the planned joints ``q`` (n_joints,) against their closing
+    signs (:func:`closing_signs`), the actuators' targets move to ``squeeze_*`` past them over
+    ``CLOSING_RAMP`` of ``close_time`` and hold, gravity as the model has it. Returns the
+    object's centre of mass before the closing, (3,), m (world frame)."""
+    import mujoco
+
+    model = world.model
+    signs = closing_signs(gripper, q)
+    opening = np.where(gripper.revolute, settings.open_revolute, settings.open_prismatic)
+    squeeze = np.where(gripper.revolute, settings.squeeze_revolute, settings.squeeze_prismatic)
+    mujoco.mj_resetData(model, data)
+    q_start = np.clip(q - signs * opening, gripper.lower, gripper.upper)
+    q_goal = q + signs * squeeze
+    set_joints(world, data.qpos, q_start)
+    mujoco.mj_forward(model, data)
+    start, _ = _object_pose(world, data)
+    steps = int(round(settings.close_time / settings.timestep))
+    ramp = max(1, int(CLOSING_RAMP * steps))
+    for k in range(steps):
+        data.ctrl[:] = q_start + min(1.0, (k + 1) / ramp) * (q_goal - q_start)
+        mujoco.mj_step(model, data)
+    return start
+
+
 def validate_grasp(gripper: Gripper, body: ObjectBody, T_object_gripper: np.ndarray,
                    q: np.ndarray, settings: SimulationSettings | None = None) -> GraspValidation:
     """Simulate one grasp (see the module docstring).
@@ -157,28 +187,15 @@ def validate_grasp(gripper: Gripper, body: ObjectBody, T_object_gripper: np.ndar
     model = world.model
     data = mujoco.MjData(model)
     q = np.asarray(q, dtype=float)
-    signs = closing_signs(gripper, q)
-    opening = np.where(gripper.revolute, settings.open_revolute, settings.open_prismatic)
-    squeeze = np.where(gripper.revolute, settings.squeeze_revolute, settings.squeeze_prismatic)
 
-    _set_joints(world, data.qpos, q)
+    set_joints(world, data.qpos, q)
     mujoco.mj_forward(model, data)
     dists = _contacts(world, data)
     penetration = float(max(0.0, -dists.min())) if len(dists) else 0.0
     if penetration > settings.penetration_limit:
         return GraspValidation(Outcome.PENETRATING, (), penetration, 0.0)
 
-    mujoco.mj_resetData(model, data)
-    q_start = np.clip(q - signs * opening, gripper.lower, gripper.upper)
-    q_goal = q + signs * squeeze
-    _set_joints(world, data.qpos, q_start)
-    mujoco.mj_forward(model, data)
-    start, _ = _object_pose(world, data)
-    steps = int(round(settings.close_time / settings.timestep))
-    ramp = max(1, int(CLOSING_RAMP * steps))
-    for k in range(steps):
-        data.ctrl[:] = q_start + min(1.0, (k + 1) / ramp) * (q_goal - q_start)
-        mujoco.mj_step(model, data)
+    start = close_fingers(gripper, world, data, q, settings)
     closed_pos, closed_quat = _object_pose(world, data)
     moved = float(np.linalg.norm(closed_pos - start))
     if moved > settings.eject_distance or len(_contacts(world, data)) == 0:
