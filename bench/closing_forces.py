@@ -7,10 +7,15 @@ by the links of the tagged contact surfaces at the end of the same closing, with
 (MuJoCo's ``mj_contactForce``); and the depth at which the contact surfaces' links and the
 other links sit in the object at the planned joints (the deepest contact of each group, the
 simulation's convex parts). A grasp whose other links carry most of the force is held by them,
-not by its contact surfaces (the Robotiq 2F-85's inner knuckles: docs/validate.md).
+not by its contact surfaces (the Robotiq 2F-85's inner knuckles: docs/validate.md). Beside
+them, the links isf's ranking expects to take the grip (``Grasp.closing_obstructed_by``,
+:func:`isf.quality.closing.closing_obstructions`), and how often the two agree. With
+``--every-valid`` every valid grasp of each plan is closed, not only the top 5 (the top 5 of
+the quality ranking put the grasps with obstructions last).
 
 Run from the repository root:
     python bench/closing_forces.py [--gripper robotiq-2f-85] [--objects ycb] [--share 0.2]
+                                   [--every-valid]
 """
 
 from __future__ import annotations
@@ -79,6 +84,8 @@ def main() -> None:
     parser.add_argument("--deeper", type=float, default=0.0003,
                         help="margin, m, by which another link counts as deeper in the object "
                         "than the contact surfaces (default 0.0003)")
+    parser.add_argument("--every-valid", action="store_true",
+                        help="close every valid grasp of each plan, not only the top 5")
     args = parser.parse_args()
     settings = SimulationSettings(friction=bh.FRICTION)
     names = bh.object_names(args.objects)
@@ -88,15 +95,20 @@ def main() -> None:
         for name in names:
             obj = isf.open_object(bh.object_spec(name))
             body = object_body(obj.mesh_vertices, obj.mesh_faces, settings.mass)
-            for rank, grasp in enumerate(bh.plan(gripper, obj).grasps[:bh.TOP]):
+            grasps = bh.plan(gripper, obj).grasps
+            for rank, grasp in enumerate(grasps if args.every_valid else grasps[:bh.TOP]):
+                if args.every_valid and not grasp.valid:
+                    continue
                 record = {"object": name, "rank": rank + 1,
+                          "obstructed_by": grasp.closing_obstructed_by or (),
                           **closing_record(gripper, body, grasp, settings)}
                 records.append(record)
                 share = record["surface_share"]
                 print(f"{name:16s} {rank + 1}  {record['outcome']:11s} contact-surface share "
                       f"{'-' if share is None else f'{share:.2f}'}  depth surfaces "
                       f"{1e3 * record['surface_depth']:.1f} mm, other links "
-                      f"{1e3 * record['other_depth']:.1f} mm", flush=True)
+                      f"{1e3 * record['other_depth']:.1f} mm; isf: "
+                      f"{', '.join(record['obstructed_by']) or 'no obstruction'}", flush=True)
     closed = [r for r in records if r["surface_share"] is not None]
     by_others = [r for r in closed if r["surface_share"] < args.share]
     deeper = [r for r in records if r["other_depth"] > r["surface_depth"] + args.deeper]
@@ -111,6 +123,14 @@ def main() -> None:
           f"{sum(r['outcome'] == 'held' for r in deeper)} of the {len(deeper)} held, against "
           f"{sum(r['outcome'] == 'held' for r in records if r not in deeper)} of the other "
           f"{len(records) - len(deeper)}.")
+    flagged = [r for r in records if r["obstructed_by"]]
+    print(f"isf's closing obstructions (Grasp.closing_obstructed_by): {len(flagged)} grasps, "
+          f"{sum(r in by_others for r in flagged)} of them held by other links in the simulation, "
+          f"against {sum(r in by_others for r in records if r not in flagged)} of the other "
+          f"{len(records) - len(flagged)}; {sum(r['outcome'] == 'held' for r in flagged)} of the "
+          f"{len(flagged)} held, against "
+          f"{sum(r['outcome'] == 'held' for r in records if r not in flagged)} of the other "
+          f"{len(records) - len(flagged)}.")
 
 
 if __name__ == "__main__":

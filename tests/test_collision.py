@@ -117,6 +117,8 @@ def test_palm_through_the_object_collides_at_the_analytic_depth(cube):
     assert report.colliding_links == ("palm",)
     assert report.obstacle == "object"
     assert report.clearance == 0.0
+    assert report.link_depths["palm"] == report.penetration
+    assert report.link_depths["left"] == report.link_depths["right"] == 0.0
 
 
 def test_fingers_through_the_object_collide_at_the_analytic_depth(cube):
@@ -471,7 +473,9 @@ def test_verdicts_agree_with_a_brute_force_reference_on_a_sphere(gripper):
         brute = _brute_depths(gripper, T, q, ball)
         report = checker.check(T, [q])
         assert report.penetration == pytest.approx(max(brute.values()), abs=6e-4), (brute, report)
+        assert report.penetration == max(report.link_depths.values())
         for link, d in brute.items():
+            assert report.link_depths[link] == pytest.approx(d, abs=6e-4), (link, d, report)
             if abs(d - tol) < 3e-4:  # too close to call for sampled surfaces
                 continue
             compared += 1

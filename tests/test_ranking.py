@@ -63,9 +63,9 @@ def test_quality_ranking_puts_resisting_grasps_first(plans, paper_gripper, cylin
 def _full_key(grasp) -> tuple:
     """The ranking key with every metric computed, epsilon included (the reference order)."""
     q = grasp.quality
-    quality = ((1, True, 0.0, 0.0, 0.0) if q is None else
-               (0, not q.squeeze_balanced, -min(q.min_margin, MARGIN_TARGET), q.com_offset,
-                -q.epsilon))
+    quality = ((1, True, True, 0.0, 0.0, 0.0) if q is None else
+               (0, bool(grasp.closing_obstructed_by), not q.squeeze_balanced,
+                -min(q.min_margin, MARGIN_TARGET), q.com_offset, -q.epsilon))
     return (not grasp.collision_free, not grasp.in_contact, not grasp.one_piece,
             grasp.settled is False, *quality, grasp.fit.mean_distance, grasp.sample_index)
 

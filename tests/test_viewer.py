@@ -181,5 +181,6 @@ def test_the_list_carries_each_grasps_quality_and_physics_outcome(plan_file, tmp
     assert rows[valid[0]["rank"]]["physics"] == "slipped 4/6"
     assert rows[valid[0]["rank"]]["epsilon"] == valid[0]["quality"]["epsilon"]
     assert rows[valid[0]["rank"]]["squeeze_imbalance"] == valid[0]["quality"]["squeeze_imbalance"]
+    assert all(rows[g["rank"]]["closing_obstructed_by"] == g["closing_obstructed_by"] for g in valid)
     others = [g["rank"] for g in data["grasps"] if "validation" not in g]
     assert all(rows[rank]["physics"] is None for rank in others)

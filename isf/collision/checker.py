@@ -80,8 +80,8 @@ from __future__ import annotations
 
 import logging
 import weakref
-from collections.abc import Sequence
-from dataclasses import dataclass
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
 from typing import NamedTuple, Protocol
 
 import coal
@@ -261,6 +261,10 @@ class CollisionReport:
             ``gripper.geometries``.
         obstacle: ``"object"``, the plane's name or the hidden region's name for the deepest
             violation; None when collision-free.
+        link_depths: the deepest penetration of each checked link's elements into the object
+            or an obstacle, metres (0 where none), by link name, in the order of
+            ``gripper.geometries``: the deepest evaluated sample of each element, as
+            :attr:`penetration` is for the whole gripper (see the module docs).
     """
 
     collision_free: bool
@@ -268,6 +272,7 @@ class CollisionReport:
     clearance: float
     colliding_links: tuple[str, ...]
     obstacle: str | None
+    link_depths: Mapping[str, float] = field(default_factory=dict)
 
 
 class CollisionChecker:
@@ -319,6 +324,8 @@ class CollisionChecker:
         self._obstacle_names = [p.name for p in self.obstacles] + ["object"] + (
             [] if hidden is None else [hidden.name])
         self._elements, packed, state = _prepared(gripper, links)
+        self._links = links
+        self._element_link = np.array([e.frame for e in self._elements], dtype=np.int64)
         if hidden is not None:
             self._hidden_samples = _HiddenSamples.of(packed)
         self._triangles, self._triangle_start = packed["_triangles"], packed["_triangle_start"]
@@ -363,10 +370,13 @@ class CollisionChecker:
         colliding = [self._elements[i].link for i in np.flatnonzero(depth > self.tolerance)]
         worst = int(np.argmax(depth))
         free = not colliding
+        link_depths = np.zeros(len(self._links))
+        np.maximum.at(link_depths, self._element_link, depth)
         return CollisionReport(
             collision_free=free, penetration=float(depth[worst]), clearance=float(clearance),
             colliding_links=tuple(dict.fromkeys(colliding)),
             obstacle=None if free else self._obstacle_names[where[worst]],
+            link_depths=dict(zip(self._links, link_depths.tolist())),
         )
 
     def check_many(self, T_object_gripper: np.ndarray, q: np.ndarray) -> list[CollisionReport]:

@@ -199,6 +199,22 @@ class Gripper:
         )
         self.point_rank = np.concatenate([np.arange(len(s.points)) for s in self.surfaces])
         self._points_of_link = [np.flatnonzero(self.point_link == k) for k in range(len(links))]
+        self._moving_joints = self._actuated_joints_of_links()
+
+    def _actuated_joints_of_links(self) -> dict[str, frozenset[str]]:
+        """The actuated joints between each link and the root, a mimic joint standing for its
+        leader, by link (frame) name."""
+        out: dict[str, frozenset[str]] = {}
+        for frame in self.model.frames:
+            if frame.type != pin.FrameType.BODY:
+                continue
+            joints, joint = set(), frame.parentJoint
+            while joint > 0:
+                name = self.model.names[joint]
+                joints.add(self.mimic[name].joint if name in self.mimic else name)
+                joint = self.model.parents[joint]
+            out.setdefault(frame.name, frozenset(joints & set(self.joint_names)))
+        return out
 
     # ------------------------------------------------------------ robot frames
     @property
@@ -271,6 +287,29 @@ class Gripper:
         return {name: float(np.sign(push[j])) if abs(push[j]) >= CLOSING_HOLD_COSINE * speed[j]
                 else 0.0
                 for j, name in enumerate(self.joint_names) if speed[j] > 1e-9}
+
+    def closing_signs(self, q: np.ndarray | None = None) -> np.ndarray:
+        """The sign of the motion that closes each actuated joint's finger, +1 or -1, or 0 for a
+        joint that holds its value while the others close, shape (n_joints,): the declared
+        :attr:`closing` where there is one, else :meth:`suggested_closing` at ``q`` (default
+        :attr:`q_initial`), else (a joint that moves no contact point) +1."""
+        signs = np.ones(self.n_joints)
+        suggested = None
+        for j, name in enumerate(self.joint_names):
+            if name in self.closing:
+                signs[j] = self.closing[name]
+            else:
+                if suggested is None:
+                    suggested = self.suggested_closing(q)
+                signs[j] = suggested.get(name, 1.0)
+        return signs
+
+    def closing_joints_of_links(self, q: np.ndarray | None = None) -> dict[str, frozenset[str]]:
+        """For every link, the actuated joints that move it as the fingers close (those whose
+        :meth:`closing_signs` at ``q`` is not 0, a mimic joint standing for its leader), by
+        link name; an empty set for a link no closing joint moves (the palm)."""
+        holds = {name for name, sign in zip(self.joint_names, self.closing_signs(q)) if sign == 0}
+        return {link: joints - holds for link, joints in self._moving_joints.items()}
 
     def joint_state(self, q: np.ndarray) -> dict[str, float]:
         """Every moving joint's value by URDF name at ``q`` (n_joints,): the actuated joints

@@ -70,6 +70,8 @@ def _grasp_to_dict(rank: int, grasp: Grasp) -> dict:
         "settled": grasp.settled,
         "within_bound": grasp.within_bound,
         "quality": None if grasp.quality is None else grasp.quality.to_dict(),
+        "closing_obstructed_by": (None if grasp.closing_obstructed_by is None
+                                  else list(grasp.closing_obstructed_by)),
         "convergence": _convergence(fit),
     }
 

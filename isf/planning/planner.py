@@ -80,6 +80,7 @@ from ..config import FitConfig
 from ..fitting.engine import LockstepFitter
 from ..gripper.model import Gripper
 from ..object.surface import ObjectSurface
+from ..quality.closing import closing_obstructions
 from ..quality.grasp_quality import (
     GraspQuality,
     ObjectProperties,
@@ -144,6 +145,10 @@ class Grasp:
             run's :class:`isf.planning.diversity.Diversity`), or None for a distinct grasp.
         quality: what its contacts resist (:func:`isf.quality.grasp_quality.grasp_quality`), computed for
             the valid grasps of a plan ranked by quality; None otherwise.
+        closing_obstructed_by: the links that would take the grip from the contact surfaces as
+            the fingers close (:func:`isf.quality.closing.closing_obstructions`: moved by a
+            closing joint, no contact surface, deeper in the object than the contact surfaces
+            they close with); empty when none, computed with :attr:`quality`; None otherwise.
     """
 
     fit: FitResult
@@ -155,6 +160,7 @@ class Grasp:
     settled: bool | None = None
     duplicate_of: int | None = None
     quality: GraspQuality | None = None
+    closing_obstructed_by: tuple[str, ...] | None = None
     within_bound: bool | None = None
     centred: bool = False
 
@@ -208,7 +214,8 @@ class Grasp:
                     self.sample_index)
         return (not self.collision_free, not self.in_contact, not self.one_piece,
                 self.settled is False, self.within_bound is False,
-                *quality_rank_key(self.quality, self.fit.mean_distance),
+                *quality_rank_key(self.quality, self.fit.mean_distance,
+                                  closing_obstructed=bool(self.closing_obstructed_by)),
                 self.sample_index)
 
 
@@ -331,15 +338,18 @@ def _check_ranking(rank, quality) -> None:
 
 def _with_quality(grasps: list[Grasp], gripper: Gripper, obj: ObjectSurface,
                   config: QualityConfig, properties: ObjectProperties | None) -> list[Grasp]:
-    """``grasps`` with the :attr:`Grasp.quality` of each valid one (the others keep None);
-    ``properties``: the object's, or None to compute them when a grasp is valid."""
+    """``grasps`` with the :attr:`Grasp.quality` and :attr:`Grasp.closing_obstructed_by` of each
+    valid one (the others keep None); ``properties``: the object's, or None to compute them
+    when a grasp is valid."""
     if not any(g.valid for g in grasps):
         return grasps
     valid = [g for g in grasps if g.valid]
     properties = object_properties(obj) if properties is None else properties
     qualities = iter(grasps_quality(gripper, obj, np.array([g.T_object_gripper for g in valid]),
                                     np.array([g.q for g in valid]), config, properties))
-    return [replace(g, quality=next(qualities)) if g.valid else g for g in grasps]
+    return [replace(g, quality=next(qualities),
+                    closing_obstructed_by=closing_obstructions(gripper, g.q, g.collision.link_depths))
+            if g.valid else g for g in grasps]
 
 
 def _slots(sampler: Sampler, batch_size: int) -> int:

@@ -3,10 +3,12 @@
 :mod:`isf.quality.contacts` builds the contact model of a grasp (point and patch contacts with
 friction), :mod:`isf.quality.wrenches` the friction cones, force closure and the Ferrari-Canny
 epsilon, :mod:`isf.quality.gravity` the largest gravity load per direction, and
-:mod:`isf.quality.grasp_quality` the per-grasp record and the planner's ranking key. Pure
-functions on numpy arrays (scipy's qhull and HiGHS); see docs/quality.md.
+:mod:`isf.quality.grasp_quality` the per-grasp record and the planner's ranking key, and
+:mod:`isf.quality.closing` the links that would take the grip from the contact surfaces as the
+fingers close. Pure functions on numpy arrays (scipy's qhull and HiGHS); see docs/quality.md.
 """
 
+from .closing import OBSTRUCTION_MARGIN, closing_obstructions
 from .contacts import ContactModelConfig, Contacts, grasp_contacts, grasps_contacts
 from .grasp_quality import (
     MARGIN_TARGET,
@@ -31,8 +33,8 @@ from .wrenches import (
 )
 
 __all__ = ["CONE_EDGES", "ContactModelConfig", "Contacts", "GRAVITY", "GraspQuality",
-           "MARGIN_TARGET", "ObjectProperties", "QualityConfig", "SIX_DIRECTIONS", "WrenchSpace",
-           "cone_edges", "contact_wrenches", "contacts_quality", "epsilon_quality",
-           "force_closure", "grasp_contacts", "grasp_quality", "grasps_contacts",
-           "grasps_quality", "gravity_loads", "object_properties", "positively_spans",
-           "quality_rank_key", "resists_loads"]
+           "MARGIN_TARGET", "OBSTRUCTION_MARGIN", "ObjectProperties", "QualityConfig",
+           "SIX_DIRECTIONS", "WrenchSpace", "closing_obstructions", "cone_edges",
+           "contact_wrenches", "contacts_quality", "epsilon_quality", "force_closure",
+           "grasp_contacts", "grasp_quality", "grasps_contacts", "grasps_quality", "gravity_loads",
+           "object_properties", "positively_spans", "quality_rank_key", "resists_loads"]

@@ -7,14 +7,16 @@ Ferrari-Canny epsilon, force closure and the largest gravity load per direction
 (:mod:`isf.quality.wrenches`, :mod:`isf.quality.gravity`) as a :class:`GraspQuality`.
 
 Ranking (:func:`quality_rank_key`, the planner's default ``rank="quality"``): grasps whose
-squeeze is balanced (:attr:`GraspQuality.squeeze_balanced`: with every contact surface pressing
-equally hard, friction can absorb the net push) first; then grasps that resist their weight in
-every gravity direction (smallest margin >= :data:`MARGIN_TARGET`) tie; the others follow,
-higher smallest margin first. Then the grasp whose contacts'
-centroid lies nearer the centre of mass first (:attr:`GraspQuality.com_offset`: the smaller the
-gravity torques it must resist, the less its hold depends on the contact model's torsion, which
-corner contacts overstate for a real pad, and on the mass distribution), then higher epsilon,
-then the fitting error (mean point-to-plane distance).
+closing fingers reach the object with their contact surfaces first
+(:func:`isf.quality.closing.closing_obstructions` finds no other link of theirs deeper in the
+object) first; then grasps whose squeeze is balanced (:attr:`GraspQuality.squeeze_balanced`:
+with every contact surface pressing equally hard, friction can absorb the net push); then
+grasps that resist their weight in every gravity direction (smallest margin >=
+:data:`MARGIN_TARGET`) tie; the others follow, higher smallest margin first. Then the grasp
+whose contacts' centroid lies nearer the centre of mass first (:attr:`GraspQuality.com_offset`:
+the smaller the gravity torques it must resist, the less its hold depends on the contact
+model's torsion, which corner contacts overstate for a real pad, and on the mass
+distribution), then higher epsilon, then the fitting error (mean point-to-plane distance).
 """
 
 from __future__ import annotations
@@ -510,15 +512,19 @@ class _HigherEpsilonFirst:
         return self.quality is not other.quality and self._epsilon() > other._epsilon()
 
 
-def quality_rank_key(quality: GraspQuality | None, mean_distance: float) -> tuple:
-    """Sort key (lower first) of a grasp by its quality (a balanced squeeze,
-    :attr:`GraspQuality.squeeze_balanced`, first; then higher smallest gravity margin up to
-    :data:`MARGIN_TARGET`, :attr:`GraspQuality.held_margin`: compared by bounds where they
-    settle the order; then :attr:`GraspQuality.com_offset`, then higher epsilon, read only to
+def quality_rank_key(quality: GraspQuality | None, mean_distance: float, *,
+                     closing_obstructed: bool = False) -> tuple:
+    """Sort key (lower first) of a grasp by its quality: a closing that reaches the contact
+    surfaces first (``closing_obstructed`` False: no other link of the closing fingers lies
+    deeper in the object, :func:`isf.quality.closing.closing_obstructions`), then a balanced
+    squeeze (:attr:`GraspQuality.squeeze_balanced`), then higher smallest gravity margin up to
+    :data:`MARGIN_TARGET` (:attr:`GraspQuality.held_margin`: compared by bounds where they
+    settle the order), then :attr:`GraspQuality.com_offset`, then higher epsilon (read only to
     break a tie of those before it), then its fitting error ``mean_distance`` (metres); a
     grasp without a quality record (None) comes after every grasp with one."""
     if quality is None:
-        return (1, True, _HigherMarginFirst(None), 0.0, _HigherEpsilonFirst(None),
+        return (1, True, True, _HigherMarginFirst(None), 0.0, _HigherEpsilonFirst(None),
                 mean_distance)
-    return (0, not quality.squeeze_balanced, _HigherMarginFirst(quality), quality.com_offset,
-            _HigherEpsilonFirst(quality), mean_distance)
+    return (0, bool(closing_obstructed), not quality.squeeze_balanced,
+            _HigherMarginFirst(quality), quality.com_offset, _HigherEpsilonFirst(quality),
+            mean_distance)

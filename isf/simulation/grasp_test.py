@@ -29,7 +29,7 @@ from .settings import SimulationSettings
 from .world import GraspWorld, build_world
 
 __all__ = ["DIRECTIONS", "DirectionResult", "GraspValidation", "Outcome", "close_fingers",
-           "closing_signs", "set_joints", "validate_grasp"]
+           "set_joints", "validate_grasp"]
 
 #: Gravity directions of the hold phase, in the world (object) frame.
 DIRECTIONS: dict[str, tuple[float, float, float]] = {
@@ -125,33 +125,17 @@ def _contacts(world: GraspWorld, data) -> np.ndarray:
     return np.asarray(data.contact.dist[:n])[pair]
 
 
-def closing_signs(gripper: Gripper, q: np.ndarray) -> np.ndarray:
-    """+1 or -1 per actuated joint, the sign of the joint motion that closes the finger, or 0
-    for a joint that holds its planned value (n_joints,)."""
-    declared = getattr(gripper, "closing", None) or {}
-    suggested = None
-    signs = np.ones(gripper.n_joints)
-    for j, name in enumerate(gripper.joint_names):
-        if name in declared:
-            signs[j] = declared[name]
-        else:
-            if suggested is None:
-                suggested = gripper.suggested_closing(q)
-            signs[j] = suggested.get(name, 1.0)
-    return signs
-
-
 def close_fingers(gripper: Gripper, world: GraspWorld, data, q: np.ndarray,
                   settings: SimulationSettings) -> np.ndarray:
     """The closing of the test (step 2 of the module docstring) from a reset ``data``: the
     fingers start ``open_*`` from the planned joints ``q`` (n_joints,) against their closing
-    signs (:func:`closing_signs`), the actuators' targets move to ``squeeze_*`` past them over
-    ``CLOSING_RAMP`` of ``close_time`` and hold, gravity as the model has it. Returns the
-    object's centre of mass before the closing, (3,), m (world frame)."""
+    signs (:meth:`isf.Gripper.closing_signs`), the actuators' targets move to ``squeeze_*``
+    past them over ``CLOSING_RAMP`` of ``close_time`` and hold, gravity as the model has it.
+    Returns the object's centre of mass before the closing, (3,), m (world frame)."""
     import mujoco
 
     model = world.model
-    signs = closing_signs(gripper, q)
+    signs = gripper.closing_signs(q)
     opening = np.where(gripper.revolute, settings.open_revolute, settings.open_prismatic)
     squeeze = np.where(gripper.revolute, settings.squeeze_revolute, settings.squeeze_prismatic)
     mujoco.mj_resetData(model, data)

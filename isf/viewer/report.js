@@ -154,6 +154,7 @@
     "<th>status</th><th>squeeze imbalance</th><th>epsilon</th><th>gravity margin</th><th>physics</th></tr></thead><tbody>" + data.grasps.map((g, n) =>
       "<tr class=grasp data-index=" + n + " title='" + (g.repaired ? "repaired; " : "") + (g.centred ? "centred; " : "") +
       (g.duplicate_of ? "duplicate of " + g.duplicate_of + "; " : "") +
+      (g.closing_obstructed_by.length ? "closing obstructed by: " + g.closing_obstructed_by.join(", ") + "; " : "") +
       (g.colliding_links.length ? "colliding: " + g.colliding_links.join(", ") : "") + "'><td>" + g.rank + "</td>" +
       yes(g.valid) + yes(g.collision_free) + "<td>" + mm(g.mean_distance) + "</td><td>" + mm(g.clearance) +
       "</td><td>" + mm(g.penetration) + "</td><td>" + g.iterations + "</td><td>" + g.status + "</td><td>" +
