@@ -49,7 +49,8 @@ whose fingers keep within their local depth bound (:mod:`isf.scene.finger_depth`
 point-to-plane distance
 (lower first): the paper's ranking, ``rank="fit"``. By default (``rank="quality"``) the valid
 grasps are ranked by what their contacts resist instead (:mod:`isf.quality`:
-:func:`isf.quality.grasp_quality.quality_rank_key`: a balanced squeeze first, then holding
+:func:`isf.quality.grasp_quality.quality_rank_key`: a closing that meets the object with the
+contact surfaces first (:mod:`isf.quality.closing`), then a balanced squeeze, then holding
 their weight in every gravity direction, then contacts nearest the centre of mass, then the
 Ferrari-Canny epsilon, then the fitting error),
 ahead of the others in the order above.

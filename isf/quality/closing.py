@@ -1,10 +1,14 @@
 """Does the closing reach the contact surfaces first? Links that would take the grip.
 
 A gripper closes its fingers until something stops them. When a link that moves with a closing
-finger but carries no contact surface (a Robotiq 2F-85's inner knuckle, a hand's middle
-phalanx) sits deeper in the object at the planned joints than the contact surfaces it closes
-with, the closing fingers meet the object there first: that link takes the squeeze, and the
-contact surfaces, whose contacts the quality metrics count, press little or not at all. The
+finger but carries no contact surface (a Robotiq 2F-85's inner knuckle) sits deeper in the
+object at the planned joints than a contact surface it closes with, the closing fingers meet
+the object there first. Where stopping that link stops every closing joint that moves the
+contact surface (the Robotiq's one actuated joint drives both fingers and their knuckles
+through its linkage), that link takes the squeeze, and the contact surface, whose contacts
+the quality metrics count, presses little or not at all. A link that leaves one of the
+contact surface's closing joints free does not: a hand's proximal phalanx that meets the
+object first stalls its own joint, and the joints beyond it still press the fingertip. The
 palm and other links that no closing joint moves do not close onto the object and are not
 counted (they touch or they do not, as the collision check says).
 
@@ -12,7 +16,7 @@ Depths are those of the collision check (:attr:`isf.collision.CollisionReport.li
 metres, 0 for a link outside the object), which accepts links up to its tolerance inside; a
 link counts as deeper when it is deeper by more than :data:`OBSTRUCTION_MARGIN`, the accuracy
 the check's depth estimates are trusted to (:mod:`isf.collision.checker`), so that a link level
-with its fingertip (its depth read a few micrometres deeper) does not count.
+with its contact surface (its depth read a few micrometres deeper) does not count.
 """
 
 from __future__ import annotations
@@ -34,10 +38,10 @@ def closing_obstructions(gripper: Gripper, q: np.ndarray, link_depths: Mapping[s
                          margin: float = OBSTRUCTION_MARGIN) -> tuple[str, ...]:
     """The links that would take the grip from the contact surfaces as the fingers close.
 
-    A link obstructs the closing when it carries no contact surface, a closing joint moves it
-    (:meth:`isf.Gripper.closing_joints_of_links` at ``q``), and it lies deeper in the object,
-    by more than ``margin``, than every contact surface's link that one of the same joints
-    moves (every contact link when no joint is shared).
+    A link obstructs the closing when it carries no contact surface and lies deeper in the
+    object, by more than ``margin``, than the contact-surface links it can stop: those whose
+    every closing joint also moves it (:meth:`isf.Gripper.closing_joints_of_links` at ``q``),
+    so that once it meets the object none of their closing joints can move them further.
 
     Args:
         gripper: the gripper.
@@ -47,8 +51,8 @@ def closing_obstructions(gripper: Gripper, q: np.ndarray, link_depths: Mapping[s
         margin: how much deeper than the contact surfaces a link must lie, metres.
 
     Returns:
-        the obstructing links' names, in the order of ``link_depths``; empty when the
-        contact surfaces are the deepest links of their fingers (within ``margin``).
+        the obstructing links' names, in the order of ``link_depths``; empty when every
+        contact surface lies at least as deep (within ``margin``) as the links that can stop it.
     """
     moved_by = gripper.closing_joints_of_links(q)
     contact_links = gripper.contact_links
@@ -57,8 +61,7 @@ def closing_obstructions(gripper: Gripper, q: np.ndarray, link_depths: Mapping[s
         joints = moved_by.get(link, frozenset())
         if link in contact_links or not joints:
             continue
-        partners = [c for c in contact_links if moved_by.get(c, frozenset()) & joints]
-        deepest_contact = max(link_depths.get(c, 0.0) for c in partners or contact_links)
-        if depth > deepest_contact + margin:
+        stopped = [c for c in contact_links if moved_by.get(c) and moved_by[c] <= joints]
+        if stopped and depth > max(link_depths.get(c, 0.0) for c in stopped) + margin:
             obstructing.append(link)
     return tuple(obstructing)
