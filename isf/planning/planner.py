@@ -147,9 +147,9 @@ class Grasp:
         quality: what its contacts resist (:func:`isf.quality.grasp_quality.grasp_quality`), computed for
             the valid grasps of a plan ranked by quality; None otherwise.
         closing_obstructed_by: the links that would take the grip from the contact surfaces as
-            the fingers close (:func:`isf.quality.closing.closing_obstructions`: moved by a
-            closing joint, no contact surface, deeper in the object than the contact surfaces
-            they close with); empty when none, computed with :attr:`quality`; None otherwise.
+            the fingers close (:func:`isf.quality.closing.closing_obstructions`: no contact
+            surface, deeper in the object than a contact surface whose every closing joint
+            moves them too); empty when none, computed with :attr:`quality`; None otherwise.
     """
 
     fit: FitResult

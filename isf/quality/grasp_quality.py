@@ -8,9 +8,10 @@ Ferrari-Canny epsilon, force closure and the largest gravity load per direction
 
 Ranking (:func:`quality_rank_key`, the planner's default ``rank="quality"``): grasps whose
 closing fingers reach the object with their contact surfaces first
-(:func:`isf.quality.closing.closing_obstructions` finds no other link of theirs deeper in the
-object) first; then grasps whose squeeze is balanced (:attr:`GraspQuality.squeeze_balanced`:
-with every contact surface pressing equally hard, friction can absorb the net push); then
+(:func:`isf.quality.closing.closing_obstructions` finds no link that could stop a contact
+surface deeper in the object) first; then grasps whose squeeze is balanced
+(:attr:`GraspQuality.squeeze_balanced`: with every contact surface pressing equally hard,
+friction can absorb the net push); then
 grasps that resist their weight in every gravity direction (smallest margin >=
 :data:`MARGIN_TARGET`) tie; the others follow, higher smallest margin first. Then the grasp
 whose contacts' centroid lies nearer the centre of mass first (:attr:`GraspQuality.com_offset`:
@@ -515,8 +516,8 @@ class _HigherEpsilonFirst:
 def quality_rank_key(quality: GraspQuality | None, mean_distance: float, *,
                      closing_obstructed: bool = False) -> tuple:
     """Sort key (lower first) of a grasp by its quality: a closing that reaches the contact
-    surfaces first (``closing_obstructed`` False: no other link of the closing fingers lies
-    deeper in the object, :func:`isf.quality.closing.closing_obstructions`), then a balanced
+    surfaces first (``closing_obstructed`` False: no link that could stop a contact surface
+    lies deeper in the object, :func:`isf.quality.closing.closing_obstructions`), then a balanced
     squeeze (:attr:`GraspQuality.squeeze_balanced`), then higher smallest gravity margin up to
     :data:`MARGIN_TARGET` (:attr:`GraspQuality.held_margin`: compared by bounds where they
     settle the order), then :attr:`GraspQuality.com_offset`, then higher epsilon (read only to
