@@ -14,9 +14,10 @@ counted (they touch or they do not, as the collision check says).
 
 Depths are those of the collision check (:attr:`isf.collision.CollisionReport.link_depths`,
 metres, 0 for a link outside the object), which accepts links up to its tolerance inside; a
-link counts as deeper when it is deeper by more than :data:`OBSTRUCTION_MARGIN`, the accuracy
-the check's depth estimates are trusted to (:mod:`isf.collision.checker`), so that a link level
-with its contact surface (its depth read a few micrometres deeper) does not count.
+link counts as deeper when it is deeper by more than :data:`OBSTRUCTION_MARGIN`, the least
+error the check allows its predicted depths (0.1 mm plus half the distance to the exactly
+evaluated centre of its patch, :mod:`isf.collision.checker`), so that a link level with its
+contact surface (its depth read a few micrometres deeper) does not count.
 """
 
 from __future__ import annotations
@@ -30,8 +31,8 @@ from ..gripper.model import Gripper
 __all__ = ["OBSTRUCTION_MARGIN", "closing_obstructions"]
 
 OBSTRUCTION_MARGIN = 1e-4
-"""Depth, metres, by which a link must lie deeper in the object than the contact surfaces it
-closes with to obstruct the closing (:func:`closing_obstructions`)."""
+"""Depth, metres, by which a link must lie deeper in the object than a contact surface it can
+stop to obstruct the closing (:func:`closing_obstructions`)."""
 
 
 def closing_obstructions(gripper: Gripper, q: np.ndarray, link_depths: Mapping[str, float], *,
