@@ -34,6 +34,7 @@ is scaled).
 ``--seed N`` plans with another seed (default 0). ``--com-share S`` plans with
 ``RegretSampler(com_share=S)``: ``0`` starts every sample at a cluster centre (the paper's
 Algorithm 3), the default starts every second one at the centre of mass (docs/samplers.md).
+``--hear-quality`` plans with ``RegretSampler(hear_quality=True)`` (docs/samplers.md).
 
 With ``--every-valid``, every valid grasp of each ``quality`` plan is simulated too, not only
 the top 5: how many of them hold, by distance of their contacts from the centre of mass, how
@@ -44,7 +45,7 @@ Run from the repository root:
     python bench/bench_hold.py [--quick] [--grippers paper-parallel,franka-hand]
                                [--objects ycb|held-out|Banana,asset:bottle] [--raw FILE.json]
                                [--out FILE.md]
-                               [--every-valid] [--seed N] [--com-share S]
+                               [--every-valid] [--seed N] [--com-share S] [--hear-quality]
 """
 
 from __future__ import annotations
@@ -305,6 +306,9 @@ def main() -> None:
                         help="plan with centring=False: grasps where ISF and the repair left them")
     parser.add_argument("--com-share", type=float, default=None, metavar="S",
                         help="plan with RegretSampler(com_share=S) (default: the sampler's own)")
+    parser.add_argument("--hear-quality", action="store_true",
+                        help="plan with RegretSampler(hear_quality=True): the bandit hears "
+                        "whether each valid grasp is expected to hold")
     parser.add_argument("--finger-force", type=float, default=SimulationSettings().finger_force,
                         metavar="N", help="normal force each contact surface can press with, N "
                         "(default: isf validate's)")
@@ -313,8 +317,11 @@ def main() -> None:
     PLAN_OPTIONS["seed"] = args.seed
     if args.no_centring:
         PLAN_OPTIONS["centring"] = False
-    if args.com_share is not None:
-        PLAN_OPTIONS["sampler"] = lambda: RegretSampler(com_share=args.com_share)
+    if args.com_share is not None or args.hear_quality:
+        sampler_options = {"hear_quality": args.hear_quality}
+        if args.com_share is not None:
+            sampler_options["com_share"] = args.com_share
+        PLAN_OPTIONS["sampler"] = lambda: RegretSampler(**sampler_options)
     grippers = args.grippers.split(",")
     objects = object_names(args.objects)[:2] if args.quick else object_names(args.objects)
     started, header = time.perf_counter(), _common.machine_description()
@@ -382,7 +389,7 @@ def main() -> None:
           " ".join(f"{o[0].upper()}{h}" for o, h in zip(r["outcomes"], r["held_directions"]))]
          for r in rows])
     share = RegretSampler().com_share if args.com_share is None else args.com_share
-    sampler = f"regret sampler (com_share {share})"
+    sampler = f"regret sampler (com_share {share}{', hearing the quality' if args.hear_quality else ''})"
     sampler += ", grasps not centred" if args.no_centring else ", grasps centred"
     text = (f"{SAMPLES} samples, {sampler}, seed {args.seed}, objects at real size; top {TOP} "
             f"grasps of each plan simulated with friction {settings.friction}, "

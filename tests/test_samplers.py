@@ -53,7 +53,8 @@ def test_every_installed_sampler_conforms(name):
 
 
 @pytest.mark.parametrize(
-    "sampler", [RegretSampler, UniformSampler, RegretSampler(n_clusters=3, gamma=0.5)], ids=repr
+    "sampler", [RegretSampler, UniformSampler, RegretSampler(n_clusters=3, gamma=0.5),
+                RegretSampler(hear_quality=True)], ids=repr
 )
 @pytest.mark.parametrize("kind", ["box", "sphere"])
 def test_builtin_samplers_conform(sampler, kind):
@@ -244,6 +245,14 @@ def test_outcome_valid_given_is_kept_and_must_be_collision_free():
         Outcome(proposal, 1e-3, False, valid=True)
 
 
+def test_outcome_holds_is_for_valid_grasps_only():
+    proposal = Proposal(np.eye(4))
+    assert Outcome(proposal, 1e-3, True).holds is None
+    assert Outcome(proposal, 1e-3, True, valid=True, holds=np.bool_(False)).holds is False
+    with pytest.raises(ValueError, match="not valid"):
+        Outcome(proposal, NO_CONTACT_ERROR, True, valid=False, holds=True)
+
+
 def test_the_no_contact_error_is_one_constant():
     assert isf.planning.planner.NO_CONTACT_ERROR is NO_CONTACT_ERROR
 
@@ -371,6 +380,21 @@ def test_regret_bookkeeping_follows_algorithm_3(gripper):
     assert sampler.best_cluster() == 0
 
 
+def test_regret_hearing_the_quality_counts_a_grasp_not_expected_to_hold_as_no_contact(gripper):
+    obj, _ = _blobs()
+    for hear, expected in ((False, [0.002, 0.004, 0.003]),
+                           (True, [0.002, NO_CONTACT_ERROR, 0.003])):
+        sampler = RegretSampler(n_clusters=3, com_share=0, hear_quality=hear)
+        assert sampler.hears_quality() is hear
+        rng = np.random.default_rng(0)
+        sampler.reset(obj, gripper, rng)
+        # holds: True, False, None (what a plan ranked by fit reports)
+        for error, holds in ((0.002, True), (0.004, False), (0.003, None)):
+            (p,) = sampler.propose(1, rng)
+            sampler.observe([Outcome(p, error, True, valid=True, holds=holds)])
+        np.testing.assert_allclose(sampler.regret, expected)
+
+
 def test_regret_batch_proposes_at_one_cluster_with_distinct_rotations(gripper, box):
     sampler = RegretSampler(com_share=0)
     rng = np.random.default_rng(0)
@@ -442,12 +466,19 @@ def test_regret_makes_no_centre_of_mass_start_on_a_scene(gripper):
     "params",
     [{"n_clusters": 0}, {"n_clusters": 2.5}, {"n_clusters": True}, {"gamma": -0.1},
      {"gamma": float("nan")}, {"gamma": "0.2"}, {"kmeans_iterations": 0}, {"com_share": 1.0},
-     {"com_share": -0.1}, {"com_share": "0.5"}, {"com_share": True}],
+     {"com_share": -0.1}, {"com_share": "0.5"}, {"com_share": True}, {"hear_quality": "yes"},
+     {"hear_quality": 2}],
 )
 def test_regret_validates_parameters(params):
     key = next(iter(params))
     with pytest.raises(ConfigError, match=key):
         RegretSampler(**params)
+
+
+@pytest.mark.parametrize(("value", "flag"), [(True, True), ("false", False), ("True", True),
+                                             (1, True), (np.bool_(False), False)])
+def test_regret_reads_hear_quality_as_a_flag(value, flag):
+    assert RegretSampler(hear_quality=value).hear_quality is flag  # e.g. --sampler-param text
 
 
 def test_regret_needs_enough_points(gripper):
@@ -541,3 +572,42 @@ def test_on_a_scene_a_grasp_across_two_pieces_is_an_invalid_outcome(no_inference
     grasps = [g for g, _ in pairs]
     assert any(g.valid for g in grasps)
     assert any(g.collision_free and g.in_contact and g.pieces == 2 for g in grasps)
+
+
+class _NumberingHearer(_Numbering):
+    """:class:`_Numbering` asking for the quality ranking's verdict; it proposes the same."""
+
+    def hears_quality(self):
+        return True
+
+
+def test_a_sampler_that_hears_the_quality_gets_the_rankings_verdict_on_the_same_plan():
+    from isf.quality import expected_to_hold
+
+    obj = isf.open_object("asset:mug")
+    plans, heard = [], []
+    for sampler in (_Numbering(), _NumberingHearer()):
+        plans.append(isf.plan("three-finger", obj, samples=12, sampler=sampler, seed=0))
+        heard.append(sampler.outcomes)
+    plain, hearing = plans
+    # computing the quality as outcomes arrive changes nothing in the plan
+    assert [g.sample_index for g in plain.grasps] == [g.sample_index for g in hearing.grasps]
+    for a, b in zip(plain.grasps, hearing.grasps):
+        assert (a.quality is None) is (b.quality is None)
+        if a.quality is not None:
+            assert a.quality.to_dict() == b.quality.to_dict()
+            assert a.closing_obstructed_by == b.closing_obstructed_by
+    # what the hearing sampler heard is the verdict of the grasp's final record
+    by_start = {g.sampler_record["start"]: g for g in hearing.grasps}
+    assert any(g.valid for g in hearing.grasps)
+    for start, outcome in heard[1].items():
+        grasp = by_start[start]
+        expected = (expected_to_hold(grasp.quality,
+                                     closing_obstructed=bool(grasp.closing_obstructed_by))
+                    if grasp.valid else None)
+        assert outcome.holds is expected
+    assert all(o.holds is None for o in heard[0].values())
+    # ranked by fit there is no verdict to hear
+    sampler = _NumberingHearer()
+    isf.plan("three-finger", obj, samples=6, sampler=sampler, seed=0, rank="fit")
+    assert all(o.holds is None for o in sampler.outcomes.values())

@@ -86,6 +86,7 @@ from ..quality.grasp_quality import (
     GraspQuality,
     ObjectProperties,
     QualityConfig,
+    expected_to_hold,
     grasps_quality,
     object_properties,
     quality_rank_key,
@@ -340,17 +341,25 @@ def _check_ranking(rank, quality) -> None:
 def _with_quality(grasps: list[Grasp], gripper: Gripper, obj: ObjectSurface,
                   config: QualityConfig, properties: ObjectProperties | None) -> list[Grasp]:
     """``grasps`` with the :attr:`Grasp.quality` and :attr:`Grasp.closing_obstructed_by` of each
-    valid one (the others keep None); ``properties``: the object's, or None to compute them
-    when a grasp is valid."""
-    if not any(g.valid for g in grasps):
+    valid one that has no quality yet (the invalid ones keep None); ``properties``: the
+    object's, or None to compute them when a grasp needs them."""
+    pending = [g for g in grasps if g.valid and g.quality is None]
+    if not pending:
         return grasps
-    valid = [g for g in grasps if g.valid]
     properties = object_properties(obj) if properties is None else properties
-    qualities = iter(grasps_quality(gripper, obj, np.array([g.T_object_gripper for g in valid]),
-                                    np.array([g.q for g in valid]), config, properties))
+    qualities = iter(grasps_quality(gripper, obj, np.array([g.T_object_gripper for g in pending]),
+                                    np.array([g.q for g in pending]), config, properties))
     return [replace(g, quality=next(qualities),
                     closing_obstructed_by=closing_obstructions(gripper, g.q, g.collision.link_depths))
-            if g.valid else g for g in grasps]
+            if g.valid and g.quality is None else g for g in grasps]
+
+
+def _plan_quality_config(quality: QualityConfig | None, config: FitConfig) -> QualityConfig:
+    """The quality parameters of a plan ranked by quality: ``quality`` (or the defaults) with
+    the fit's ``contact_distance``."""
+    base = QualityConfig() if quality is None else quality
+    return replace(base, contact_model=replace(base.contact_model,
+                                               contact_distance=config.contact_distance))
 
 
 def _slots(sampler: Sampler, batch_size: int) -> int:
@@ -514,12 +523,18 @@ def plan(
                        center_of_mass=properties.center_of_mass)
     settler = None if scene is None else Settler(gripper, obj, scene, config, obstacles=obstacles,
                                                  tolerance=collision_tolerance)
+    quality = _plan_quality_config(quality, config) if rank == "quality" else None
+    hearing = quality is not None and sampler.hears_quality()
+    if hearing and properties is None:
+        properties = object_properties(obj)
+    heard_time = 0.0  # quality computed as outcomes arrive, for a sampler that hears it
 
     grasps: list[Grasp] = []
 
     def record(index: int, proposal: Proposal, result: FitResult, report: CollisionReport,
                repaired: bool, centred: bool) -> Outcome:
         """Keep a sample's grasp and return its outcome for the sampler."""
+        nonlocal heard_time
         settled = within_bound = None
         if settler is not None:
             result, report, settled, within_bound = settler.settle(result, report)
@@ -527,13 +542,20 @@ def plan(
             gripper, result.T_object_gripper, result.q, config.contact_distance)
         grasp = Grasp(result, report, dict(proposal.record), index, pieces, repaired, settled,
                       within_bound=within_bound, centred=centred)
+        holds = None
+        if hearing and grasp.valid:
+            started_quality = time.perf_counter()
+            (grasp,) = _with_quality([grasp], gripper, obj, quality, properties)
+            holds = expected_to_hold(grasp.quality,
+                                     closing_obstructed=bool(grasp.closing_obstructed_by))
+            heard_time += time.perf_counter() - started_quality
         grasps.append(grasp)
         if progress is not None:
             progress(len(grasps), samples, grasp)
         touching = grasp.in_contact and grasp.one_piece
         error = result.mean_distance if touching else NO_CONTACT_ERROR
         return Outcome(proposal, error=error, collision_free=report.collision_free,
-                       valid=grasp.valid)
+                       valid=grasp.valid, holds=holds)
 
     if workers == 1:
         evaluations = LockstepEvaluations(LockstepFitter(gripper, obj, config),
@@ -560,15 +582,11 @@ def plan(
     collision_time = sum(j.collision_time for j in judges)
 
     quality_started = time.perf_counter()
-    if rank == "quality":
-        base = QualityConfig() if quality is None else quality
-        quality = replace(base, contact_model=replace(base.contact_model,
-                                                      contact_distance=config.contact_distance))
+    if quality is not None:
         grasps = _with_quality(grasps, gripper, obj, quality, properties)
-    else:
-        quality = None
     grasps.sort(key=Grasp.sort_key)  # a tie of the quality ranking reads epsilon here
-    quality_time = time.perf_counter() - quality_started if rank == "quality" else 0.0
+    quality_time = (time.perf_counter() - quality_started + heard_time
+                    if quality is not None else 0.0)
     if diversity is not None:  # after the ranking: distinct grasps first
         diversity = replace(diversity, symmetry=diversity.order(gripper))
         grasps = _distinct_first(grasps, gripper, diversity)

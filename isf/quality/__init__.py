@@ -16,6 +16,7 @@ from .grasp_quality import (
     ObjectProperties,
     QualityConfig,
     contacts_quality,
+    expected_to_hold,
     grasp_quality,
     grasps_quality,
     object_properties,
@@ -35,6 +36,7 @@ from .wrenches import (
 __all__ = ["CONE_EDGES", "ContactModelConfig", "Contacts", "GRAVITY", "GraspQuality",
            "MARGIN_TARGET", "OBSTRUCTION_MARGIN", "ObjectProperties", "QualityConfig",
            "SIX_DIRECTIONS", "WrenchSpace", "closing_obstructions", "cone_edges",
-           "contact_wrenches", "contacts_quality", "epsilon_quality", "force_closure",
+           "contact_wrenches", "contacts_quality", "epsilon_quality", "expected_to_hold",
+           "force_closure",
            "grasp_contacts", "grasp_quality", "grasps_contacts", "grasps_quality", "gravity_loads",
            "object_properties", "positively_spans", "quality_rank_key", "resists_loads"]

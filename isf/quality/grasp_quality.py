@@ -34,8 +34,8 @@ from .gravity import GRAVITY, SIX_DIRECTIONS, _LoadBalance, gravity_loads, resis
 from .wrenches import CONE_EDGES, WrenchSpace, _cross, contact_wrenches, positively_spans
 
 __all__ = ["GraspQuality", "MARGIN_TARGET", "ObjectProperties", "QualityConfig",
-           "contacts_quality", "grasp_quality", "grasps_quality", "object_properties",
-           "quality_rank_key"]
+           "contacts_quality", "expected_to_hold", "grasp_quality", "grasps_quality",
+           "object_properties", "quality_rank_key"]
 
 MARGIN_TARGET = 1.0
 """Smallest gravity margin (multiples of the object's weight) at which :func:`quality_rank_key`
@@ -511,6 +511,16 @@ class _HigherEpsilonFirst:
 
     def __lt__(self, other) -> bool:
         return self.quality is not other.quality and self._epsilon() > other._epsilon()
+
+
+def expected_to_hold(quality: GraspQuality | None, *, closing_obstructed: bool = False) -> bool:
+    """Whether the quality ranking expects a grasp to hold: its closing reaches the contact
+    surfaces first (not ``closing_obstructed``), its squeeze is balanced
+    (:attr:`GraspQuality.squeeze_balanced`) and it holds its weight in every gravity direction
+    (:attr:`GraspQuality.held_margin` >= :data:`MARGIN_TARGET`): the first tier of each of the
+    first three criteria of :func:`quality_rank_key`. False without a quality record."""
+    return (quality is not None and not closing_obstructed and quality.squeeze_balanced
+            and quality.held_margin >= MARGIN_TARGET)
 
 
 def quality_rank_key(quality: GraspQuality | None, mean_distance: float, *,

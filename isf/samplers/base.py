@@ -108,6 +108,10 @@ class Outcome:
             object and, on a scene, resting on one piece of it). The planner sets it; left
             None (``Outcome(proposal, error, collision_free)``), it is inferred as
             ``collision_free and error < NO_CONTACT_ERROR``. Always a bool once built.
+        holds: for a sampler whose :meth:`Sampler.hears_quality` is true, in a plan ranked by
+            quality: whether the ranking expects the grasp to hold
+            (:func:`isf.quality.grasp_quality.expected_to_hold`), for a valid grasp; None for
+            an invalid grasp and whenever the planner did not compute it.
 
     Raises:
         ValueError: ``error`` is NaN, or ``valid`` is True for a grasp that is not
@@ -118,6 +122,7 @@ class Outcome:
     error: float
     collision_free: bool
     valid: bool | None = None
+    holds: bool | None = None
 
     def __post_init__(self) -> None:
         error = float(self.error)
@@ -129,9 +134,12 @@ class Outcome:
         if valid and not collision_free:
             raise ValueError("Outcome.valid is True but collision_free is False; a valid grasp "
                              "is collision-free")
+        if self.holds is not None and not valid:
+            raise ValueError("Outcome.holds is set for a grasp that is not valid; leave it None")
         object.__setattr__(self, "error", error)
         object.__setattr__(self, "collision_free", collision_free)
         object.__setattr__(self, "valid", valid)
+        object.__setattr__(self, "holds", None if self.holds is None else bool(self.holds))
 
 
 class Sampler(abc.ABC):
@@ -200,6 +208,13 @@ class Sampler(abc.ABC):
         propose well (e.g. while exploring) returns a small number, at least 1.
         """
         return None
+
+    def hears_quality(self) -> bool:
+        """Whether this sampler wants :attr:`Outcome.holds`, the quality ranking's verdict on
+        each valid grasp. When true, a plan ranked by quality computes each valid grasp's
+        quality as its outcome arrives instead of all at the end (the same records, one grasp
+        at a time). False (the default) leaves ``holds`` None."""
+        return False
 
     def _require_reset(self) -> tuple[ObjectSurface, Gripper]:
         """The current object and gripper, or a RuntimeError when :meth:`reset` was not called."""

@@ -15,6 +15,11 @@ with ``col = 1`` when the fitted gripper collides with the object. Starting
 from ``regret = 0``, every cluster is tried once before any is tried twice
 (as long as errors are positive).
 
+With ``hear_quality=True`` (in a plan ranked by quality) a valid grasp that the quality ranking
+does not expect to hold (:attr:`isf.samplers.Outcome.holds` False) counts as
+``NO_CONTACT_ERROR``, like a fit whose contact surfaces do not all touch, so the bandit turns
+to clusters whose grasps hold; measured in docs/samplers.md, off by default.
+
 Besides the clusters, a share ``com_share`` of the proposals (every second one at the default
 0.5; none on a scene) puts the grasp centre at the object's centre of mass, facing a uniformly
 random direction: grasps whose contacts surround the centre of mass resist gravity best
@@ -33,7 +38,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..exceptions import ConfigError
-from .base import Outcome, Proposal, Sampler, place_gripper
+from .base import NO_CONTACT_ERROR, Outcome, Proposal, Sampler, place_gripper
 from .orientation import check_orientation, initial_rotations, resolve_approach
 
 if TYPE_CHECKING:
@@ -67,6 +72,18 @@ def _default_clusters(obj: ObjectSurface, gripper: Gripper) -> int:
     return int(np.clip(round(area / (0.5 * opening) ** 2), PAPER_CLUSTERS, MAX_SCENE_CLUSTERS))
 
 
+def _flag(value, key: str) -> bool:
+    """A yes/no parameter: a bool, 0 or 1, or the text ``true``/``false`` (as ``isf plan
+    --sampler-param KEY=VALUE`` passes it)."""
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)) and value in (0, 1):
+        return bool(value)
+    if isinstance(value, str) and value.lower() in ("true", "false"):
+        return value.lower() == "true"
+    raise ConfigError(f"regret: {key} must be true or false, got {value!r}")
+
+
 @dataclass(eq=False, kw_only=True)
 class RegretSampler(Sampler):
     """Guided sampling over k-means cluster centres (paper Alg. 3).
@@ -97,6 +114,9 @@ class RegretSampler(Sampler):
             (:mod:`isf.scene`, ``ObjectSurface.viewpoints`` set) gets none: the centroid of an
             unsegmented scene is the centre of mass of no object. 0 gives the paper's
             Algorithm 3.
+        hear_quality: ask the planner for the quality ranking's verdict on each valid grasp
+            (:meth:`hears_quality`) and count a valid grasp it does not expect to hold as
+            ``NO_CONTACT_ERROR`` in its cluster's regret.
 
     Attributes:
         k: the number of centres K in use (``n_clusters`` or its default).
@@ -117,6 +137,7 @@ class RegretSampler(Sampler):
     kmeans_iterations: int = 10
     orientation: str = "auto"
     com_share: float = 0.5
+    hear_quality: bool = False
 
     k: int = field(init=False, repr=False, default=0)
     centres: np.ndarray = field(init=False, repr=False, default=None)
@@ -145,6 +166,7 @@ class RegretSampler(Sampler):
         if isinstance(share, bool) or not isinstance(share, (int, float, np.number)) \
                 or not 0 <= share < 1:
             raise ConfigError(f"regret: com_share must be a number in [0, 1), got {share!r}")
+        self.hear_quality = _flag(self.hear_quality, "hear_quality")
         check_orientation(self.orientation, self.name)
 
     def reset(self, obj: ObjectSurface, gripper: Gripper, rng: np.random.Generator) -> None:
@@ -253,6 +275,10 @@ class RegretSampler(Sampler):
             return False
         return math.floor((i + 1) * self.com_share) > math.floor(i * self.com_share)
 
+    def hears_quality(self) -> bool:
+        """``hear_quality``: whether the planner reports :attr:`Outcome.holds`."""
+        return bool(self.hear_quality)
+
     def in_flight_limit(self) -> int | None:
         """While some cluster has no outcome yet, one proposal per such cluster (exploration,
         as the sequential loop does it); afterwards no limit."""
@@ -279,7 +305,9 @@ class RegretSampler(Sampler):
                     "'cluster'; pass back proposals made by this sampler since reset()"
                 )
             collided = not outcome.collision_free
-            average = (self.regret[k] * self.trials[k] + outcome.error) / (self.trials[k] + 1)
+            error = (NO_CONTACT_ERROR if self.hear_quality and outcome.holds is False
+                     else outcome.error)
+            average = (self.regret[k] * self.trials[k] + error) / (self.trials[k] + 1)
             self.regret[k] = (1.0 + self.gamma * collided) * average
             self.trials[k] += 1
             self.pending[k] = max(self.pending[k] - 1, 0)
