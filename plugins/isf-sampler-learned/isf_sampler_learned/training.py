@@ -38,8 +38,8 @@ from .features import (
 )
 from .model import L2, LearnedModel, fit_model
 
-__all__ = ["Examples", "HeldOut", "ObjectRanking", "collect_examples", "held_out_accuracy",
-           "object_ranking", "train"]
+__all__ = ["Examples", "HeldOut", "ObjectRanking", "PlannedStarts", "collect_examples",
+           "held_out_accuracy", "object_ranking", "plan_starts", "train"]
 
 logger = logging.getLogger(__name__)
 
@@ -118,6 +118,38 @@ class _RecordingSampler(Sampler):
         return self.inner.in_flight_limit()
 
 
+class PlannedStarts(NamedTuple):
+    """The starts of one plan and what became of them, in the order of the plan's grasps.
+
+    Attributes:
+        surface: the object surface the plan matched against (its working surface), object
+            frame.
+        T_object_gripper: each sample's start, shape (M, 4, 4), metres.
+        valid: :attr:`isf.Grasp.valid` of each sample's grasp, shape (M,).
+        error: each grasp's fitting error, metres, shape (M,).
+    """
+
+    surface: object
+    T_object_gripper: np.ndarray
+    valid: np.ndarray
+    error: np.ndarray
+
+
+def plan_starts(gripper, obj, sampler: str, *, samples: int = 60, seed: int = 0) -> PlannedStarts:
+    """Plan ``obj`` (an :class:`isf.ObjectSurface`) with the sampler named ``sampler`` and keep
+    each sample's start with its outcome."""
+    import isf
+
+    recorder = _RecordingSampler(inner=get_sampler(sampler))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # e.g. objects larger than the opening
+        result = isf.plan(gripper, obj, samples=samples, sampler=recorder, seed=seed)
+    T = np.stack([recorder.starts[grasp.sampler_record["start"]].T_object_gripper
+                  for grasp in result.grasps])
+    return PlannedStarts(recorder.obj, T, np.array([g.valid for g in result.grasps], dtype=bool),
+                         np.array([g.fit.mean_distance for g in result.grasps], dtype=float))
+
+
 def collect_examples(gripper, objects: Sequence, *, samplers: Sequence[str] = ("uniform", "regret"),
                      samples: int = 60, seed: int = 0,
                      progress: Callable[[str], None] | None = None) -> Examples:
@@ -139,21 +171,17 @@ def collect_examples(gripper, objects: Sequence, *, samplers: Sequence[str] = ("
     for g, spec in enumerate(objects):
         obj = spec if isinstance(spec, isf.ObjectSurface) else isf.open_object(spec)
         for name in samplers:
-            recorder = _RecordingSampler(inner=get_sampler(name))
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")  # e.g. objects larger than the opening
-                result = isf.plan(gripper, obj, samples=samples, sampler=recorder, seed=seed + k)
+            planned = plan_starts(gripper, obj, name, samples=samples, seed=seed + k)
             k += 1
-            descriptors = ObjectDescriptors.build(recorder.obj, axes)
-            T = np.stack([recorder.starts[grasp.sampler_record["start"]].T_object_gripper
-                          for grasp in result.grasps])
+            descriptors = ObjectDescriptors.build(planned.surface, axes)
+            T = planned.T_object_gripper
             centres = T[:, :3, :3] @ axes.centre + T[:, :3, 3]
             rows.append(candidate_features(descriptors, axes, centres, T[:, :3, :3]))
-            valid.extend(grasp.valid for grasp in result.grasps)
-            error.extend(grasp.fit.mean_distance for grasp in result.grasps)
-            group.extend([g] * len(result.grasps))
+            valid.extend(planned.valid)
+            error.extend(planned.error)
+            group.extend([g] * len(T))
             if progress is not None:
-                progress(f"{obj.name} {name}: {result.stats.valid}/{samples} valid")
+                progress(f"{obj.name} {name}: {int(planned.valid.sum())}/{samples} valid")
     return Examples(np.concatenate(rows), np.array(valid, dtype=bool), np.array(error, dtype=float),
                     np.array(group, dtype=int))
 

@@ -30,7 +30,12 @@ from isf_sampler_learned.features import (
     gripper_axes,
 )
 from isf_sampler_learned.model import MODEL_FORMAT, fit_model
-from isf_sampler_learned.training import Examples, collect_examples, object_ranking
+from isf_sampler_learned.training import (
+    Examples,
+    collect_examples,
+    object_ranking,
+    plan_starts,
+)
 
 BUNDLED = ("paper-parallel", "flat-parallel", "three-finger")
 
@@ -313,6 +318,24 @@ def test_training_examples_are_labelled_and_deterministic():
     assert one.features.shape == (8, len(FEATURE_NAMES)) and list(one.group) == [0] * 4 + [1] * 4
     plan = isf.plan(gripper, objects[0], samples=4, sampler="uniform", seed=5)
     assert sorted(one.valid[:4]) == sorted(g.valid for g in plan.grasps)
+
+
+def test_planned_starts_are_the_samplers_starts_with_their_grasps_outcomes():
+    from isf.samplers import grasp_centre
+
+    gripper = isf.load_gripper("flat-parallel")
+    obj = isf.open_object("shape:box")
+    planned = plan_starts(gripper, obj, "uniform", samples=6, seed=3)
+    plan = isf.plan(gripper, obj, samples=6, sampler="uniform", seed=3)
+    np.testing.assert_array_equal(planned.valid, [g.valid for g in plan.grasps])
+    np.testing.assert_array_equal(planned.error, [g.fit.mean_distance for g in plan.grasps])
+    # the uniform sampler puts the grasp centre on a point of the surface the plan matched
+    T = planned.T_object_gripper
+    centres = T[:, :3, :3] @ grasp_centre(gripper) + T[:, :3, 3]
+    gaps = np.linalg.norm(centres[:, None] - planned.surface.points[None], axis=2).min(axis=1)
+    assert gaps.max() < 1e-9
+    fitted = np.array([g.T_object_gripper for g in plan.grasps])
+    assert not np.allclose(fitted, T)  # starts, not the fitted poses
 
 
 def test_within_object_ranking_matches_scikit_learn(tmp_path):
