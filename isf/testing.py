@@ -159,12 +159,14 @@ def _check_proposals(
             _fail(sampler, f"{where}.record is not JSON-serialisable ({err}); use plain types")
 
 
-def _planner_outcome(proposal: Proposal, i: int) -> Outcome:
+def _planner_outcome(proposal: Proposal, i: int, hears_quality: bool) -> Outcome:
     """The ``i``-th of a cycle of the outcomes the planner reports: valid, colliding (its
-    contacts touching), collision-free but not touching (``NO_CONTACT_ERROR``)."""
+    contacts touching), collision-free but not touching (``NO_CONTACT_ERROR``); for a sampler
+    that hears the quality, the valid ones expected to hold and not in turn."""
     error = 1e-3 * (i + 1)
     if i % 3 == 0:
-        return Outcome(proposal, error, collision_free=True, valid=True)
+        holds = (i % 6 == 0) if hears_quality else None
+        return Outcome(proposal, error, collision_free=True, valid=True, holds=holds)
     if i % 3 == 1:
         return Outcome(proposal, error, collision_free=False, valid=False)
     return Outcome(proposal, NO_CONTACT_ERROR, collision_free=True, valid=False)
@@ -175,13 +177,17 @@ def _run_plan(
 ) -> list[list[Proposal]]:
     """Drive one plan (reset, propose, observe, propose) and check every answer."""
     rng = np.random.default_rng(seed)
+    hears_quality = sampler.hears_quality()
+    if not isinstance(hears_quality, (bool, np.bool_)):
+        _fail(sampler, f"hears_quality() returned {hears_quality!r}; must return True or False")
     sampler.reset(obj, gripper, rng)
     batches = []
     for n in (1, 5):
         proposals = sampler.propose(n, rng)
         _check_proposals(sampler, proposals, n, gripper)
         batches.append(proposals)
-        sampler.observe([_planner_outcome(p, i) for i, p in enumerate(proposals)])
+        sampler.observe([_planner_outcome(p, i, bool(hears_quality))
+                         for i, p in enumerate(proposals)])
     proposals = sampler.propose(3, rng)
     _check_proposals(sampler, proposals, 3, gripper)
     batches.append(proposals)
@@ -222,8 +228,9 @@ def check_sampler(
     Checks: ``name`` and ``description`` are set; ``propose(n)`` returns a
     list of exactly ``n`` :class:`Proposal`; each pose is finite with last row
     ``[0, 0, 0, 1]`` and a proper rotation; ``q`` is None or inside the joint
-    limits; ``record`` is JSON-serialisable; ``observe`` accepts outcomes of
-    each kind the planner reports (valid, colliding, not touching); two
+    limits; ``record`` is JSON-serialisable; ``hears_quality()`` returns a bool;
+    ``observe`` accepts outcomes of each kind the planner reports (valid, colliding, not
+    touching; valid ones expected to hold and not when the sampler hears the quality); two
     fresh instances with the same seed propose identical grasps; ``reset``
     starts a plan afresh; NumPy's and Python's global RNGs are untouched.
 

@@ -157,6 +157,11 @@ class _BadName(UniformSampler):
     name = "Bad Name"
 
 
+class _VagueHearer(UniformSampler):
+    def hears_quality(self):
+        return "yes"
+
+
 @pytest.mark.parametrize(
     ("cls", "message"),
     [
@@ -173,6 +178,7 @@ class _BadName(UniformSampler):
         (_JointsOutOfLimits, "joint limits"),
         (_Remembers, "reset"),
         (_BadName, "name"),
+        (_VagueHearer, "hears_quality"),
     ],
     ids=lambda v: v.__name__ if isinstance(v, type) else v,
 )
@@ -201,6 +207,19 @@ def test_check_sampler_shows_each_kind_of_planner_outcome():
     kinds = {(o.valid, o.collision_free, o.error == NO_CONTACT_ERROR) for o in _Listener.heard}
     # valid; colliding with its contacts touching; collision-free but not touching
     assert kinds == {(True, True, False), (False, False, False), (False, True, True)}
+    assert {o.holds for o in _Listener.heard} == {None}
+
+
+class _QualityListener(_Listener):
+    def hears_quality(self):
+        return True
+
+
+def test_check_sampler_shows_a_hearing_sampler_both_verdicts():
+    _Listener.heard.clear()
+    check_sampler(_QualityListener)
+    assert {o.holds for o in _Listener.heard if o.valid} == {True, False}
+    assert {o.holds for o in _Listener.heard if not o.valid} == {None}
 
 
 # ---------------------------------------------------------------- data classes
