@@ -284,6 +284,10 @@ def test_held_margin_is_the_smallest_margin_capped_at_the_target():
             quality = contacts_quality(contacts, ObjectProperties(com, 0.12),
                                        QualityConfig(mass=mass, friction=mu))
             assert quality.held_margin == min(quality.min_margin, 1.0)
+            fresh = contacts_quality(contacts, ObjectProperties(com, 0.12),
+                                     QualityConfig(mass=mass, friction=mu))
+            assert fresh.holds == (quality.min_margin >= 1.0)  # without the wrench space
+            assert "_space" not in fresh.__dict__ and "min_margin" not in fresh.__dict__
             assert quality.holds == (quality.min_margin >= 1.0)
             record = quality.to_dict()  # plain Python types, as JSON needs
             assert type(record["force_closure"]) is bool and type(record["epsilon"]) is float

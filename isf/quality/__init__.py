@@ -37,6 +37,6 @@ __all__ = ["CONE_EDGES", "ContactModelConfig", "Contacts", "GRAVITY", "GraspQual
            "MARGIN_TARGET", "OBSTRUCTION_MARGIN", "ObjectProperties", "QualityConfig",
            "SIX_DIRECTIONS", "WrenchSpace", "closing_obstructions", "cone_edges",
            "contact_wrenches", "contacts_quality", "epsilon_quality", "expected_to_hold",
-           "force_closure",
-           "grasp_contacts", "grasp_quality", "grasps_contacts", "grasps_quality", "gravity_loads",
-           "object_properties", "positively_spans", "quality_rank_key", "resists_loads"]
+           "force_closure", "grasp_contacts", "grasp_quality", "grasps_contacts", "grasps_quality",
+           "gravity_loads", "object_properties", "positively_spans", "quality_rank_key",
+           "resists_loads"]

@@ -230,6 +230,7 @@ class GraspQuality:
         self._direction_low = np.zeros(len(_DIRECTIONS))
         self._direction_high = np.full(len(_DIRECTIONS), np.inf)
         self._direction_step = np.full(len(_DIRECTIONS), 0.5 * _MARGIN_RESOLUTION)
+        self._holds = False
         for k, d in enumerate(_DIRECTIONS):
             if self._balance is None:
                 self._direction_high[k] = MARGIN_TARGET
@@ -241,6 +242,7 @@ class GraspQuality:
             self._direction_low[k] = MARGIN_TARGET
         else:
             self.held_margin = MARGIN_TARGET
+            self._holds = True
             return
         self._low, self._high = 0.0, float(self._direction_high.min())  # the smallest's bounds
         if not self._origin_may_be_inside and not resists_loads(
@@ -367,8 +369,10 @@ class GraspQuality:
 
     @property
     def holds(self) -> bool:
-        """True when the grasp resists its weight in every direction (margin >= 1)."""
-        return self.held_margin >= MARGIN_TARGET
+        """True when the grasp resists its weight in every direction (margin >=
+        :data:`MARGIN_TARGET`), as the feasibility tests made at construction found: no wrench
+        space is built to say so."""
+        return self._holds
 
     def to_dict(self) -> dict:
         """A JSON-ready record."""
@@ -517,10 +521,10 @@ def expected_to_hold(quality: GraspQuality | None, *, closing_obstructed: bool =
     """Whether the quality ranking expects a grasp to hold: its closing reaches the contact
     surfaces first (not ``closing_obstructed``), its squeeze is balanced
     (:attr:`GraspQuality.squeeze_balanced`) and it holds its weight in every gravity direction
-    (:attr:`GraspQuality.held_margin` >= :data:`MARGIN_TARGET`): the first tier of each of the
-    first three criteria of :func:`quality_rank_key`. False without a quality record."""
+    (:attr:`GraspQuality.holds`): the first tier of each of the first three criteria of
+    :func:`quality_rank_key`. False without a quality record."""
     return (quality is not None and not closing_obstructed and quality.squeeze_balanced
-            and quality.held_margin >= MARGIN_TARGET)
+            and quality.holds)
 
 
 def quality_rank_key(quality: GraspQuality | None, mean_distance: float, *,
