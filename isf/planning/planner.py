@@ -53,7 +53,9 @@ grasps are ranked by what their contacts resist instead (:mod:`isf.quality`:
 contact surfaces first (:mod:`isf.quality.closing`), then a balanced squeeze, then holding
 their weight in every gravity direction, then contacts nearest the centre of mass, then the
 Ferrari-Canny epsilon, then the fitting error),
-ahead of the others in the order above.
+ahead of the others in the order above. Their quality is computed once the loop ends, or as
+each valid grasp arrives for a sampler that hears it (:meth:`isf.Sampler.hears_quality`:
+:attr:`isf.samplers.Outcome.holds` tells it whether the ranking expects the grasp to hold).
 After the ranking, distinct grasps come first: a grasp within 1 cm and 30 degrees
 (about the TCP, under the gripper's symmetry) of a better one is marked ``duplicate_of`` and
 ranked after the distinct ones of its tier (valid and settled within the bound, valid and
