@@ -112,10 +112,13 @@ class _RecordingSampler(Sampler):
 
     def observe(self, outcomes: Sequence[Outcome]) -> None:
         self.inner.observe([Outcome(self.starts[o.proposal.record["start"]], o.error,
-                                    o.collision_free, o.valid) for o in outcomes])
+                                    o.collision_free, o.valid, o.holds) for o in outcomes])
 
     def in_flight_limit(self) -> int | None:
         return self.inner.in_flight_limit()
+
+    def hears_quality(self) -> bool:
+        return self.inner.hears_quality()
 
 
 class PlannedStarts(NamedTuple):

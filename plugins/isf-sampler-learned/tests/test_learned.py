@@ -338,6 +338,23 @@ def test_planned_starts_are_the_samplers_starts_with_their_grasps_outcomes():
     assert not np.allclose(fitted, T)  # starts, not the fitted poses
 
 
+def test_recording_passes_the_quality_verdict_to_a_sampler_that_hears_it():
+    from isf_sampler_learned.training import _RecordingSampler
+
+    class Hearer(RegretSampler):
+        heard: list = []
+
+        def observe(self, outcomes):
+            Hearer.heard.extend(outcomes)
+            super().observe(outcomes)
+
+    recorder = _RecordingSampler(inner=Hearer(hear_quality=True))
+    assert recorder.hears_quality()
+    isf.plan("flat-parallel", isf.open_object("shape:box"), samples=6, sampler=recorder, seed=0)
+    assert {o.holds for o in Hearer.heard if o.valid} <= {True, False}
+    assert any(o.valid for o in Hearer.heard)
+
+
 def test_within_object_ranking_matches_scikit_learn(tmp_path):
     from sklearn.metrics import roc_auc_score
 
