@@ -26,6 +26,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from isf.object.surface import ObjectSurface
 from isf.samplers import Outcome, Proposal, Sampler, get_sampler
 
 from .features import (
@@ -132,7 +133,7 @@ class PlannedStarts(NamedTuple):
         error: each grasp's fitting error, metres, shape (M,).
     """
 
-    surface: object
+    surface: ObjectSurface
     T_object_gripper: np.ndarray
     valid: np.ndarray
     error: np.ndarray
