@@ -4,7 +4,8 @@ For each gripper and YCB object (real size, ``asset:ycb:NAME``; ``--objects held
 objects nothing in isf was tuned on, :data:`HELD_OUT`), one ``isf.plan`` of 60 samples
 (regret sampler, seed 0) per ranking, and the top 5 grasps simulated by
 :func:`isf.simulation.validate_grasp` (friction 0.5, 0.3 kg, 20 N from each contact surface: the
-defaults of ``isf validate``; ``--finger-force`` sets another; docs/validate.md). A grasp
+defaults of ``isf validate``; ``--finger-force``, ``--friction`` and ``--mass`` set others, and
+the plans' quality ranking is given the same friction and mass; docs/validate.md). A grasp
 *holds* when the object stays within 10 mm and 0.2 rad of its closed pose with gravity along
 each of +-x, +-y, +-z. Reported per gripper and ranking: top-1 = % of objects whose best
 grasp holds in all six directions; top-5 = % of the top-5 grasps (over all objects) that hold
@@ -46,6 +47,7 @@ Run from the repository root:
                                [--objects ycb|held-out|Banana,asset:bottle] [--raw FILE.json]
                                [--out FILE.md]
                                [--every-valid] [--seed N] [--com-share S] [--hear-quality]
+                               [--friction MU] [--mass KG] [--finger-force N]
 """
 
 from __future__ import annotations
@@ -68,9 +70,12 @@ import isf
 from isf.samplers.regret import RegretSampler
 from isf.simulation import SimulationSettings, object_body, validate_grasp
 
-SAMPLES, SEED, TOP, FRICTION = 60, 0, 5, 0.5
+SAMPLES, SEED, TOP = 60, 0, 5
 #: what every isf.plan of this script is given besides the gripper and object (set by main)
 PLAN_OPTIONS: dict = {"samples": SAMPLES, "seed": SEED}
+#: the judge's friction coefficient (set by main; isf validate's default): the plans' quality
+#: ranking and the antipodal baseline are given the same
+JUDGE = {"friction": SimulationSettings().friction}
 
 
 def plan(gripper, obj, **options):
@@ -186,7 +191,7 @@ def candidates(method: str, gripper, obj, plan_antipodal) -> list[tuple[np.ndarr
     """The top grasps of one method as (T_object_gripper (4, 4), q (n_joints,)) pairs."""
     if method == "antipodal":
         grasps = plan_antipodal(gripper, obj, n_grasps=20, seed=PLAN_OPTIONS["seed"],
-                                friction=FRICTION)
+                                friction=JUDGE["friction"])
     elif method == "fit" and len(rankings()) == 1:
         grasps = plan(gripper, obj).grasps
     else:
@@ -259,7 +264,8 @@ def squeeze_report(rows: list[dict]) -> str:
     if not all("squeeze_imbalances" in r for r in rows):
         return ""
     outcomes = _not_penetrating(rows, "outcomes")
-    balanced = [p <= FRICTION for p in _not_penetrating(rows, "squeeze_imbalances")]
+    friction = rows[0]["friction"] if rows else 0.0
+    balanced = [p <= friction for p in _not_penetrating(rows, "squeeze_imbalances")]
 
     def count(is_balanced: bool, outcome: str) -> int:
         return sum(b == is_balanced and o == outcome for b, o in zip(balanced, outcomes))
@@ -269,7 +275,7 @@ def squeeze_report(rows: list[dict]) -> str:
             f"{_roc_pair(rows, 'squeeze_imbalances', outcomes, -1.0)} "
             f"(the smallest margin: {_roc_pair(rows, 'margins', outcomes, 1.0)}, the distance "
             f"from the centre of mass, nearer first: {_roc_pair(rows, 'com_offsets', outcomes, -1.0)}); "
-            f"of the {sum(balanced)} balanced (imbalance <= friction {FRICTION}) "
+            f"of the {sum(balanced)} balanced (imbalance <= friction {friction}) "
             f"{count(True, 'ejected')} were ejected and {count(True, 'held')} held, of the "
             f"{len(balanced) - sum(balanced)} others {count(False, 'ejected')} and "
             f"{count(False, 'held')}.")
@@ -312,9 +318,17 @@ def main() -> None:
     parser.add_argument("--finger-force", type=float, default=SimulationSettings().finger_force,
                         metavar="N", help="normal force each contact surface can press with, N "
                         "(default: isf validate's)")
+    parser.add_argument("--friction", type=float, default=SimulationSettings().friction,
+                        help="friction coefficient of the judge, also given to the plans' quality "
+                        "ranking and the baseline (default: isf validate's)")
+    parser.add_argument("--mass", type=float, default=SimulationSettings().mass, metavar="KG",
+                        help="object mass, kg, of the judge and the plans' quality ranking "
+                        "(default: isf validate's)")
     parser.set_defaults(deadline=0.0)
     args = parser.parse_args()
     PLAN_OPTIONS["seed"] = args.seed
+    PLAN_OPTIONS["quality"] = isf.QualityConfig(friction=args.friction, mass=args.mass)
+    JUDGE["friction"] = args.friction
     if args.no_centring:
         PLAN_OPTIONS["centring"] = False
     if args.com_share is not None or args.hear_quality:
@@ -326,7 +340,8 @@ def main() -> None:
     objects = object_names(args.objects)[:2] if args.quick else object_names(args.objects)
     started, header = time.perf_counter(), _common.machine_description()
     deadline = _common.Deadline(args.deadline)
-    settings = SimulationSettings(friction=FRICTION, finger_force=args.finger_force)
+    settings = SimulationSettings(friction=args.friction, mass=args.mass,
+                                  finger_force=args.finger_force)
     plan_antipodal = baseline()
     rows: list[dict] = ([r for f in args.from_raw.split(",") for r in json.loads(Path(f).read_text())]
                         if args.from_raw else [])
@@ -353,7 +368,8 @@ def main() -> None:
                     outcomes = [validate_grasp(gripper, body, T, q, settings)
                                 for T, q in candidates(method, gripper, obj, plan_antipodal)]
                     rows.append({"gripper": name, "method": method, "object": obj_name,
-                                 "scale": scale,
+                                 "scale": scale, "friction": settings.friction,
+                                 "mass": settings.mass,
                                  "outcomes": [v.outcome.value for v in outcomes],
                                  "held_directions": [v.held_directions for v in outcomes],
                                  "seconds": time.perf_counter() - t0})
@@ -391,13 +407,17 @@ def main() -> None:
     share = RegretSampler().com_share if args.com_share is None else args.com_share
     sampler = f"regret sampler (com_share {share}{', hearing the quality' if args.hear_quality else ''})"
     sampler += ", grasps not centred" if args.no_centring else ", grasps centred"
+    judges = sorted({(r.get("friction", SimulationSettings().friction),
+                      r.get("mass", SimulationSettings().mass)) for r in rows})
+    judged = " or ".join(f"friction {mu}, {kg} kg" for mu, kg in judges)
     text = (f"{SAMPLES} samples, {sampler}, seed {args.seed}, objects at real size; top {TOP} "
-            f"grasps of each plan simulated with friction {settings.friction}, "
-            f"{settings.mass} kg, finger force {settings.finger_force} N. Outcome letters: "
+            f"grasps of each plan simulated with {judged}, "
+            f"finger force {settings.finger_force} N. Outcome letters: "
             "H held in all six directions, S slipped (in at least one), E ejected while closing, "
             "P penetrating; the digit is how many directions held. A method that returned fewer than "
             f"{TOP} grasps for an object counts each missing one as a failure.")
-    valid_rows = [{"gripper": r["gripper"], "object": r["object"], **r["every_valid"]}
+    valid_rows = [{"gripper": r["gripper"], "object": r["object"],
+                   "friction": r.get("friction", SimulationSettings().friction), **r["every_valid"]}
                   for r in rows if "every_valid" in r]
     extra = (["### Every valid grasp of the quality plans", *every_valid_report(valid_rows)]
              if valid_rows else [])
