@@ -136,6 +136,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--friction", type=float, default=0.5, metavar="MU",
                    help="Coulomb friction coefficient of the contacts for --rank quality "
                         "(default 0.5)")
+    p.add_argument("--mass", type=float, default=0.3, metavar="KG",
+                   help="the object's mass for --rank quality, kg: a grasp holds when its "
+                        "contacts resist this weight (default 0.3)")
     p.add_argument("--out-dir", default=None, metavar="DIR",
                    help="write one JSON per object into DIR (created if missing), named after "
                         "the object: part.json for part.stl, cylinder.json for shape:cylinder")
@@ -433,13 +436,14 @@ def _quality_config(args: argparse.Namespace):
     ``--rank fit``).
 
     Raises:
-        InvalidInputError: ``--friction`` is negative or not finite.
+        InvalidInputError: ``--friction`` is negative or not finite, or ``--mass`` is not a
+            finite number > 0.
     """
     from .quality import QualityConfig
 
     if args.rank == "fit":
         return None
-    return QualityConfig(friction=args.friction)
+    return QualityConfig(friction=args.friction, mass=args.mass)
 
 
 def _diversity(args: argparse.Namespace):

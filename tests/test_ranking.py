@@ -127,6 +127,33 @@ def test_cli_rank_and_friction_write_valid_json(tmp_path, flags, rank):
         assert np.isfinite([r["epsilon"] for r in valid]).all()
 
 
+def test_cli_mass_scales_the_gravity_margins(tmp_path):
+    """A margin is the largest load the contacts resist over the object's weight, so the same
+    grasps planned for a third of the mass have three times the margins."""
+    plans = {}
+    for mass in ("0.3", "0.1"):
+        out = tmp_path / f"m{mass}.json"
+        proc = run("plan", "-g", "paper-parallel", "-o", "shape:cylinder", "-n", "4", "--out",
+                   str(out), "--quiet", "--mass", mass)
+        assert proc.returncode == 0, proc.stderr
+        data = json.loads(out.read_text())
+        assert data["ranking"]["quality"]["mass"] == float(mass)
+        plans[mass] = {g["sample_index"]: g for g in data["grasps"] if g["valid"]}
+    assert plans["0.3"] and plans["0.3"].keys() == plans["0.1"].keys()
+    for index, heavy in plans["0.3"].items():
+        light = plans["0.1"][index]
+        np.testing.assert_allclose(light["T_object_gripper"], heavy["T_object_gripper"])
+        for direction, margin in heavy["quality"]["gravity_margin"].items():
+            assert light["quality"]["gravity_margin"][direction] == pytest.approx(3 * margin,
+                                                                                 rel=1e-6)
+
+
+def test_cli_rejects_a_mass_that_is_not_positive():
+    proc = run("plan", "-g", "paper-parallel", "-o", "shape:cylinder", "-n", "2", "--mass", "0")
+    assert proc.returncode == 2
+    assert "mass" in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
+
+
 def test_cli_rejects_negative_friction():
     proc = run("plan", "-g", "paper-parallel", "-o", "shape:cylinder", "-n", "2", "--friction", "-1")
     assert proc.returncode == 2
