@@ -21,6 +21,15 @@ valid@10 is possible.
 Needs the YCB meshes (``../shared/data/ycb`` or ``$ISF_YCB_DIR``) and the plugin installed
 (``pip install -e plugins/isf-sampler-learned``).
 
+``--scenes N`` plans simulated depth images of cluttered tables instead (the scenes of
+``bench/bench_scenes.py``: ``bench/scene_sim.py`` renders them, ``isf.load_scene`` reads the
+depth images, docs/benchmark-scenes.md), built only of the YCB objects no shipped model saw
+(:data:`SCENE_OBJECTS`): scene k has seed k, 3 + (k mod 3) objects and one camera for even k,
+two for odd k; ``flat-parallel`` and the Franka hand, the grippers the scene judge is set up
+for. Besides the figures above it reports how many of each plan's top 5 valid grasps pass
+the ground-truth judge of ``bench/scene_judge.py`` (no penetration beyond 2 mm, every
+contact surface touching one and the same object).
+
 ``--tuning`` plans the objects the sampler's parameters were chosen on instead
 (:data:`TUNING_OBJECTS`, neither training nor test objects), and ``--param KEY=VALUE`` gives
 the learned sampler a parameter (a JSON value), so that a choice of parameters can be
@@ -28,7 +37,7 @@ compared there without touching the test objects.
 
 Run from the repository root:
     python bench/bench_learned.py [--quick] [--seeds 3] [--gripper NAME] [--objects N] [--out FILE]
-        [--tuning] [--param KEY=VALUE ...]
+        [--tuning] [--scenes N] [--param KEY=VALUE ...]
 """
 
 from __future__ import annotations
@@ -58,6 +67,11 @@ TEST_OBJECTS = ("asset:ycb:FoamBrick", "asset:ycb:GelatinBox", "asset:ycb:Potted
                 "asset:ycb:Scissors", "asset:ycb:TomatoSoupCan", "asset:dragon",
                 "asset:random-400", "asset:random-401")
 TUNING_OBJECTS = tuple(f"asset:random-{k}" for k in range(410, 416))
+#: the objects of ``--scenes`` (bench/scene_sim.py names): the test objects of the YCB set
+SCENE_OBJECTS = tuple(spec.removeprefix("asset:") for spec in TEST_OBJECTS
+                      if spec.startswith("asset:ycb:"))
+SCENE_GRIPPERS = ("flat-parallel", "franka-hand")
+SCENE_TOP = 5
 QUICK_OBJECTS = 3
 SAMPLES = 60
 FIRST = 10
@@ -106,19 +120,25 @@ class Run:
     valid: int
     error_mm: float
     sampler_share: float
+    judged: float = float("nan")  # of the top SCENE_TOP valid grasps, those the judge passes
 
 
-def run_once(gripper: isf.Gripper, obj: isf.ObjectSurface, sampler_cls: type, seed: int,
-             params: dict) -> Run:
+def run_once(gripper: isf.Gripper, obj, sampler_cls: type, seed: int, params: dict,
+             judge=None) -> Run:
+    """One plan of ``obj`` (an object surface or an ``isf.Scene``); ``judge`` (a
+    ``scene_judge.Judge``) judges its top valid grasps."""
     sampler = timed(sampler_cls)(**params)
     result = isf.plan(gripper, obj, samples=SAMPLES, sampler=sampler, seed=seed)
     ordered = sorted(result.grasps, key=lambda g: g.sample_index)
     valid = [g.valid for g in ordered]
     errors = [g.fit.mean_distance for g in ordered if g.valid and np.isfinite(g.fit.mean_distance)]
+    top = [g for g in result.grasps if g.valid][:SCENE_TOP]
     return Run(valid_first=sum(valid[:FIRST]),
                first_valid=valid.index(True) + 1 if any(valid) else SAMPLES + 1,
                valid=sum(valid), error_mm=1e3 * float(np.mean(errors)) if errors else float("nan"),
-               sampler_share=sampler.seconds / result.stats.total_time)
+               sampler_share=sampler.seconds / result.stats.total_time,
+               judged=float("nan") if judge is None else
+               float(sum(judge(g.T_object_gripper, g.q).passed for g in top)))
 
 
 def median_run(runs: list[Run]) -> Run:
@@ -178,6 +198,37 @@ def warm_up(gripper: isf.Gripper) -> None:
         isf.plan(gripper, obj, samples=2, sampler=cls(), seed=0)
 
 
+class Case(NamedTuple):
+    """What one row plans: an object, or a scene with its ground truth."""
+
+    name: str
+    obj: object  # isf.ObjectSurface or isf.Scene
+    truth: object = None  # scene_sim.Scene of a scene
+
+    def judge(self, gripper: isf.Gripper):
+        import scene_judge
+
+        return scene_judge.Judge(gripper, self.truth)
+
+
+def scene_cases(count: int) -> list[Case]:
+    """Scenes 0 .. count-1 of :data:`SCENE_OBJECTS`, rendered and read by ``isf.load_scene``."""
+    import bench_scenes
+    import scene_sim
+
+    catalogue = scene_sim.catalogue(list(SCENE_OBJECTS))
+    cases = []
+    for k in range(count):
+        truth = scene_sim.random_scene(catalogue, 3 + k % 3, k)
+        cameras = scene_sim.random_cameras(np.random.default_rng(k), 1 + k % 2)
+        rendered = bench_scenes.render(truth, cameras, k, "auto")
+        if rendered.scene is None:
+            raise SystemExit(f"isf.load_scene refused scene {k}: {rendered.error}")
+        cases.append(Case(f"scene {k} ({len(truth.objects)} objects, {len(cameras)} "
+                          f"camera{'s' if len(cameras) > 1 else ''})", rendered.scene, truth))
+    return cases
+
+
 def ratio(a: float, b: float) -> float:
     return a / b if b else (float("inf") if a else 1.0)
 
@@ -192,12 +243,18 @@ def main() -> None:
     parser.add_argument("--out", help="also write the markdown report to this file")
     parser.add_argument("--tuning", action="store_true",
                         help="plan the tuning objects random-410 .. random-415 instead")
+    parser.add_argument("--scenes", type=int, default=0, metavar="N",
+                        help="plan N simulated cluttered scenes of unseen objects instead")
     parser.add_argument("--param", action="append", default=[], metavar="KEY=VALUE",
                         help="a parameter of the learned sampler, VALUE in JSON (repeatable)")
     args = parser.parse_args()
     seeds = range(1 if args.quick else args.seeds)
     pool = TUNING_OBJECTS if args.tuning else TEST_OBJECTS
     objects = pool[:QUICK_OBJECTS if args.quick else args.objects]
+    grippers = args.gripper or (SCENE_GRIPPERS if args.scenes else GRIPPERS)
+    if args.scenes and set(grippers) - set(SCENE_GRIPPERS):
+        raise SystemExit(f"--scenes runs the grippers of the scene judge, {SCENE_GRIPPERS}: "
+                         "leave out --gripper or name one of them")
     try:
         params = {key: json.loads(value) for key, _, value in
                   (item.partition("=") for item in args.param)}
@@ -208,29 +265,33 @@ def main() -> None:
     started = time.perf_counter()
     header = ["gripper", "object", "sampler", "valid@10", "first valid", "valid@60",
               "error (mm)", "sampler time"]
+    header += [f"top {SCENE_TOP} passing the judge"] if args.scenes else []
+    cases = scene_cases(args.scenes) if args.scenes else [
+        Case(spec.removeprefix("asset:"), isf.open_object(spec)) for spec in objects]
     rows, summary, hard_summary = [], [], []
     with tempfile.TemporaryDirectory() as folder:
-        for name in args.gripper or GRIPPERS:
+        for name in grippers:
             gripper = load(name, Path(folder))
             warm_up(gripper)
             ratios = []
-            for spec in objects:
-                obj = isf.open_object(spec)
+            for case in cases:
+                judge = None if case.truth is None else case.judge(gripper)
                 medians = {}
                 for label, cls, kwargs in (("regret", RegretSampler, {"com_share": 0}),
                                            ("learned", LearnedSampler, params)):
-                    medians[label] = m = median_run([run_once(gripper, obj, cls, s, kwargs)
-                                                     for s in seeds])
-                    rows.append([name, spec.removeprefix("asset:"), label, _common.fmt(m.valid_first),
+                    medians[label] = m = median_run([run_once(gripper, case.obj, cls, s, kwargs,
+                                                              judge) for s in seeds])
+                    rows.append([name, case.name, label, _common.fmt(m.valid_first),
                                  _common.fmt(m.first_valid), _common.fmt(m.valid),
                                  _common.fmt(m.error_mm), f"{100 * m.sampler_share:.1f} %"])
+                    rows[-1] += [_common.fmt(m.judged)] if args.scenes else []
                     print(" | ".join(rows[-1]), flush=True)
                 r, l = medians["regret"], medians["learned"]
-                ratios.append(Comparison(spec.removeprefix("asset:"), r.valid_first,
+                ratios.append(Comparison(case.name, r.valid_first,
                                          ratio(l.valid_first, r.valid_first),
                                          ratio(l.first_valid, r.first_valid), l.valid - r.valid,
                                          ratio(l.error_mm, r.error_mm), l.sampler_share))
-            summary.append(summarise(name, "all", ratios))
+            summary.append(summarise(name, "all scenes" if args.scenes else "all", ratios))
             hard = [row for row in ratios if row.regret_first < HARD]
             if hard:
                 hard_summary.append(summarise(name, ", ".join(row.object for row in hard), hard))
@@ -238,7 +299,8 @@ def main() -> None:
         f"Command: `{' '.join(['python', *sys.argv])}`; seeds {list(seeds)}; "
         f"{time.perf_counter() - started:.0f} s.",
         _common.machine_description(),
-        "Per gripper, object and sampler (medians over the seeds):",
+        f"Per gripper, {'scene' if args.scenes else 'object'} and sampler (medians over the "
+        "seeds):",
         _common.markdown_table(header, rows),
         f"Targets of `learned` against `regret` ({TARGETS}); median over objects (worst object):",
         _common.markdown_table(SUMMARY_HEADER, summary),

@@ -14,10 +14,15 @@ gripper's own frame and scale, never in absolute coordinates:
                         neighbours' covariance (0 flat, 1/3 isotropic)
 ``normal_spread``       ``1 - |mean normal|`` of the neighbours (0 flat, 1 folded)
 ``surface_distance``    distance from ``c`` to the nearest object point, in openings
-``object_major``        the object's largest principal extent, in openings
+``object_major``        the largest principal extent of the piece ``c`` lies on, in openings
 ``object_middle``       its middle principal extent, in openings
 ``object_minor``        its smallest principal extent, in openings
 ======================  ==============================================================
+
+A *piece* is a connected part of the surface: points closer than ``PIECE_GAP`` point spacings
+are joined. A mesh or a whole scan is one piece, so the piece's extents are the object's; on a
+scene of several objects the pieces are the objects apart from one another (touching objects
+join), so the extents describe the object under ``c``, not the whole table.
 
 The gripper's *opening* ``w`` is the spread of its contact points along its closing axis at
 ``q_initial`` (metres); the *closing axis* is their first principal axis (gripper frame);
@@ -56,7 +61,7 @@ __all__ = [
     "gripper_sha256",
 ]
 
-FEATURE_VERSION = "isf-learned-features/1"
+FEATURE_VERSION = "isf-learned-features/2"
 FEATURE_NAMES = (
     "approach_cos",
     "closing_normal",
@@ -72,6 +77,8 @@ FEATURE_NAMES = (
 )
 _TUBE = 0.25  # tube radius, in openings
 _BALL = 0.5  # neighbourhood radius, in openings
+PIECE_GAP = 3.0
+"""Points closer than this many point spacings (``ObjectSurface.spacing``) share a piece."""
 
 
 def gripper_sha256(gripper: Gripper) -> str:
@@ -141,13 +148,15 @@ class ObjectDescriptors:
         normals: unit outward normals, shape (N, 3).
         opening: the gripper's opening, metres.
         tree: k-d tree of ``points``.
-        extents: the object's principal extents, largest first, in openings, shape (3,).
+        piece: the piece each point lies on, shape (N,), indices into ``extents``.
+        extents: each piece's principal extents, largest first, in openings, shape (P, 3).
     """
 
     points: np.ndarray
     normals: np.ndarray
     opening: float
     tree: cKDTree
+    piece: np.ndarray
     extents: np.ndarray
     _local: np.ndarray = field(init=False, repr=False)
 
@@ -157,15 +166,20 @@ class ObjectDescriptors:
     @classmethod
     def build(cls, obj: ObjectSurface, axes: GripperAxes) -> ObjectDescriptors:
         """Descriptors of ``obj`` at the scale of a gripper with ``axes``."""
-        from scipy.spatial import cKDTree  # here: listing the samplers loads this module
+        from scipy.sparse import coo_matrix  # here: listing the samplers loads this module
+        from scipy.sparse.csgraph import connected_components
+        from scipy.spatial import cKDTree
 
         points = np.asarray(obj.points, dtype=float)
-        centred = points - points.mean(axis=0)
-        _, _, principal = np.linalg.svd(centred, full_matrices=False)
-        projected = centred @ principal.T
-        extents = np.sort(projected.max(axis=0) - projected.min(axis=0))[::-1] / axes.opening
+        tree = cKDTree(points)
+        pairs = tree.query_pairs(PIECE_GAP * obj.spacing, output_type="ndarray")
+        graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])),
+                           shape=(len(points), len(points)))
+        _, piece = connected_components(graph, directed=False)
+        parts = np.split(points[np.argsort(piece, kind="stable")], np.cumsum(np.bincount(piece))[:-1])
+        extents = np.array([_principal_extents(part) for part in parts]) / axes.opening
         return cls(points=points, normals=np.asarray(obj.normals, dtype=float),
-                   opening=axes.opening, tree=cKDTree(points), extents=extents)
+                   opening=axes.opening, tree=tree, piece=piece, extents=extents)
 
     def local(self, index: np.ndarray) -> np.ndarray:
         """``surface_variation`` and ``normal_spread`` at object points ``index``, shape (M, 2).
@@ -196,6 +210,15 @@ class ObjectDescriptors:
         variation = eigen[:, 0] / np.maximum(eigen.sum(axis=1), 1e-30)
         normal = np.add.reduceat(self.normals[flat], starts, axis=0) / counts[:, None]
         return np.column_stack([variation, 1.0 - np.linalg.norm(normal, axis=1)])
+
+
+def _principal_extents(points: np.ndarray) -> np.ndarray:
+    """Extents of ``points`` (shape (N, 3)) along their principal axes, largest first, (3,)."""
+    centred = points - points.mean(axis=0)
+    _, _, principal = np.linalg.svd(centred, full_matrices=False)
+    projected = centred @ principal.T
+    extents = projected.max(axis=0) - projected.min(axis=0)
+    return np.sort(np.pad(extents, (0, 3 - len(extents))))[::-1]
 
 
 _CHUNK = 1_000_000  # points x candidates per block of the tube computation
@@ -274,6 +297,6 @@ def candidate_features(descriptors: ObjectDescriptors, axes: GripperAxes,
         np.maximum(depth, 0.0) / w,
         *descriptors.local(nearest).T,
         distance / w,
-        *(np.full(len(centres), e) for e in descriptors.extents),
+        *descriptors.extents[descriptors.piece[nearest]].T,
     ]
     return np.column_stack(columns)

@@ -4,8 +4,9 @@ Every sample of a plan is an example: its start (the proposal's pose), described
 :func:`~isf_sampler_learned.features.candidate_features` on the surface the plan matched
 against, and its outcome: ``valid`` (:attr:`isf.Grasp.valid`: collision-free and every
 contact surface touching) and the fitting error (:attr:`isf.FitResult.mean_distance`,
-metres). The plans run the existing samplers (``uniform`` and ``regret`` by default), seeded
-``seed + k`` for the k-th plan, so the examples, and the model, are the same for a seed.
+metres). The plans run the existing samplers (``uniform`` and ``regret`` by default, with
+:data:`SAMPLER_PARAMS`), seeded ``seed + k`` for the k-th plan, so the examples, and the model,
+are the same for a seed.
 
 Held-out figures are measured on whole objects the model did not see: every
 ``holdout``-th object (in the order given) is left out of a first fit and scored by it; the
@@ -39,10 +40,17 @@ from .features import (
 )
 from .model import L2, LearnedModel, fit_model
 
-__all__ = ["Examples", "HeldOut", "ObjectRanking", "PlannedStarts", "collect_examples",
-           "held_out_accuracy", "object_ranking", "plan_starts", "train"]
+__all__ = ["SAMPLER_PARAMS", "Examples", "HeldOut", "ObjectRanking", "PlannedStarts",
+           "collect_examples", "held_out_accuracy", "object_ranking", "plan_starts", "train"]
 
 logger = logging.getLogger(__name__)
+
+
+#: Parameters of the named samplers whose starts become examples. The regret sampler runs
+#: as the learned sampler's own bandit does, every start on a cluster centre on the surface:
+#: its default starts half of a plan at the object's centre of mass, which the learned
+#: sampler never proposes.
+SAMPLER_PARAMS: dict[str, dict] = {"regret": {"com_share": 0.0}}
 
 
 @dataclass(frozen=True)
@@ -144,7 +152,7 @@ def plan_starts(gripper, obj, sampler: str, *, samples: int = 60, seed: int = 0)
     each sample's start with its outcome."""
     import isf
 
-    recorder = _RecordingSampler(inner=get_sampler(sampler))
+    recorder = _RecordingSampler(inner=get_sampler(sampler, **SAMPLER_PARAMS.get(sampler, {})))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # e.g. objects larger than the opening
         result = isf.plan(gripper, obj, samples=samples, sampler=recorder, seed=seed)
@@ -305,7 +313,9 @@ def train(gripper, objects: Sequence, *, samplers: Sequence[str] = ("uniform", "
     held = held_out_accuracy(examples, holdout, l2=l2, **identity)
     info = {
         "objects": [getattr(o, "name", str(o)) for o in objects],
-        "samplers": list(samplers), "samples": samples, "seed": seed, "l2": l2,
+        "samplers": list(samplers), "sampler_params": {name: SAMPLER_PARAMS[name] for name in
+                                                       samplers if name in SAMPLER_PARAMS},
+        "samples": samples, "seed": seed, "l2": l2,
         "examples": int(len(examples.valid)), "valid": int(examples.valid.sum()),
         "feature_version": FEATURE_VERSION, "features": list(FEATURE_NAMES),
         "held_out": None if held is None else held.__dict__.copy(),

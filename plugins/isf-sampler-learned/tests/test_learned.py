@@ -119,6 +119,24 @@ def test_features_of_a_start_on_a_box_face_match_the_box():
                                np.array([0.06, 0.04, 0.03]) / 0.04, atol=0.1)
 
 
+def test_a_second_object_apart_leaves_the_features_of_a_start_unchanged():
+    """On a surface of two objects (a scene) the object extents are those of the object under
+    the start: the box face start gives the features of the box alone, not of the pair."""
+    _, box, axes, centre, R = box_face_start()
+    sphere = canonical_object("sphere")
+    beside = sphere.points + [0.0, 0.15, 0.0]  # 15 cm away: farther than a tube reaches
+    pair = isf.ObjectSurface(points=np.vstack([box.points, beside]),
+                             normals=np.vstack([box.normals, sphere.normals]),
+                             spacing=max(box.spacing, sphere.spacing))
+    alone = candidate_features(ObjectDescriptors.build(box, axes), axes, centre[None], R[None])
+    within = candidate_features(ObjectDescriptors.build(pair, axes), axes, centre[None], R[None])
+    np.testing.assert_allclose(within, alone, atol=1e-12)
+    extents = ObjectDescriptors.build(pair, axes).extents
+    assert len(extents) == 2  # one piece per object
+    # each piece spans at most its 6 cm; the pair together spans about 20 cm
+    assert extents[:, 0].max() * axes.opening < 0.065 < 0.19 < np.ptp(pair.points[:, 1])
+
+
 def test_features_do_not_depend_on_the_object_frame():
     _, obj, axes, centre, R = box_face_start()
     moved = isf.ObjectSurface(points=obj.points @ np.array([[0, -1, 0], [1, 0, 0], [0, 0, 1.0]]).T
@@ -336,6 +354,28 @@ def test_planned_starts_are_the_samplers_starts_with_their_grasps_outcomes():
     assert gaps.max() < 1e-9
     fitted = np.array([g.T_object_gripper for g in plan.grasps])
     assert not np.allclose(fitted, T)  # starts, not the fitted poses
+
+
+def test_training_starts_lie_on_the_surface_as_the_learned_sampler_proposes_them():
+    """The regret sampler's default starts half a plan at the centre of mass; the starts that
+    train a model are the surface starts the learned sampler proposes (SAMPLER_PARAMS)."""
+    from isf.samplers import grasp_centre
+
+    gripper, obj = isf.load_gripper("flat-parallel"), isf.open_object("shape:sphere")
+    centre = obj.points.mean(axis=0)
+    radius = np.linalg.norm(obj.points - centre, axis=1).mean()
+
+    def start_radii(T):
+        return np.linalg.norm(T[:, :3, :3] @ grasp_centre(gripper) + T[:, :3, 3] - centre, axis=1)
+
+    trained = start_radii(plan_starts(gripper, obj, "regret", samples=8, seed=1).T_object_gripper)
+    assert trained.min() > 0.5 * radius  # cluster centres: means of surface points
+    from isf_sampler_learned.training import _RecordingSampler
+
+    default = _RecordingSampler(inner=RegretSampler())
+    isf.plan(gripper, obj, samples=8, sampler=default, seed=1)
+    radii = start_radii(np.array([p.T_object_gripper for p in default.starts]))
+    assert (radii < 0.1 * radius).sum() == 4  # what the training starts are not
 
 
 def test_recording_passes_the_quality_verdict_to_a_sampler_that_hears_it():
