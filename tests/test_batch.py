@@ -179,6 +179,62 @@ def test_a_bad_manifest_is_a_one_line_usage_error(tmp_path, capsys):
     assert not (tmp_path / "out").exists()
 
 
+def test_the_ranking_and_quality_of_a_task_reach_the_plan_and_the_dataset(tmp_path):
+    """Each valid grasp's quality record of the plan file is in the dataset; the same grasps
+    ranked for a third of the mass have three times the margins; ``rank: fit`` leaves the
+    quality columns empty; a grasp file written without them reads with them empty."""
+    manifest = _write_manifest(tmp_path, """
+defaults: {samples: 3, gripper: paper-parallel, object: shape:cylinder}
+tasks:
+  - {seed: 4}
+  - {seed: 4, quality: {mass: 0.1, friction: 0.8}}
+  - {seed: 4, rank: fit}
+""")
+    out = tmp_path / "out"
+    assert run_batch(manifest, out, scheduler=SYNCHRONOUS, progress=None).done == 3
+    data = load_dataset(out)
+    by_task = {}
+    for key, rows in data.grasps.groupby("task_key"):
+        plan = json.loads((out / "plans" / f"{key}.json").read_text())
+        by_task[json.dumps(plan["ranking"]["quality"] and
+                           [plan["ranking"]["quality"][k] for k in ("mass", "friction")])] = rows
+        for (_, row), grasp in zip(rows.iterrows(), plan["grasps"]):
+            quality = grasp["quality"]
+            if quality is None:
+                assert row[["epsilon", "min_margin", "squeeze_imbalance"]].isna().all()
+                assert row["force_closure"] is None and row["closing_obstructed_by"] is None
+                continue
+            assert row["epsilon"] == quality["epsilon"]
+            assert row["min_margin"] == quality["min_margin"]
+            assert dict(row["gravity_margin"]) == quality["gravity_margin"]
+            assert row["com_offset"] == quality["com_offset"]
+            assert row["squeeze_imbalance"] == quality["squeeze_imbalance"]
+            assert list(row["closing_obstructed_by"]) == grasp["closing_obstructed_by"]
+    default, light, fit = by_task["[0.3, 0.5]"], by_task["[0.1, 0.8]"], by_task["null"]
+    assert fit["epsilon"].isna().all() and default["epsilon"].notna().any()
+    heavy = default.set_index("sample_index")
+    for index, row in light.set_index("sample_index").iterrows():
+        if row["valid"]:  # friction 0.8 resists more than 0.5: at least three times the margin
+            assert row["min_margin"] >= 3 * heavy.loc[index, "min_margin"] * (1 - 1e-9)
+    files = sorted((out / "grasps").glob("*.parquet"))
+    pq.write_table(pq.read_table(files[0]).drop_columns(["epsilon", "gravity_margin"]), files[0])
+    again = load_dataset(out).grasps
+    assert len(again) == len(data.grasps) and again["epsilon"].isna().sum() >= 3
+
+
+def test_a_bad_quality_or_ranking_is_a_one_line_usage_error(tmp_path, capsys):
+    for fields, message in (("quality: {mass: 0}", "quality: mass must be a number > 0"),
+                            ("quality: {weight: 1}", "quality takes friction, mass"),
+                            ("rank: best", "rank 'best' must be one of quality, fit"),
+                            ("rank: fit, quality: {mass: 1}", "set rank: quality")):
+        manifest = _write_manifest(
+            tmp_path, f"tasks:\n  - {{object: shape:box, gripper: paper-parallel, {fields}}}\n")
+        assert main(["batch", str(manifest), "--out", str(tmp_path / "out")]) == 2
+        err = capsys.readouterr().err.strip()
+        assert err.count("\n") == 0 and message in err, err
+        assert not (tmp_path / "out").exists()
+
+
 def test_one_batch_writes_a_folder_at_a_time(tmp_path):
     from isf.batch.store import BatchFolder
     from isf.exceptions import InvalidInputError

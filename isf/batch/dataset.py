@@ -48,6 +48,13 @@ GRASP_SCHEMA = pa.schema([
     pa.field("valid", pa.bool_(), nullable=False),
     pa.field("repaired", pa.bool_()),
     pa.field("centred", pa.bool_()),
+    pa.field("epsilon", pa.float64()),
+    pa.field("force_closure", pa.bool_()),
+    pa.field("gravity_margin", pa.map_(pa.string(), pa.float64())),
+    pa.field("min_margin", pa.float64()),
+    pa.field("com_offset", pa.float64()),
+    pa.field("squeeze_imbalance", pa.float64()),
+    pa.field("closing_obstructed_by", pa.list_(pa.string())),
     pa.field("duplicate_of", pa.int32()),
     pa.field("sample_index", pa.int64()),
     pa.field("plan_time", pa.float64()),
@@ -62,6 +69,13 @@ point (the plan file's ``tcp``), ``T_object_pregrasp_tcp`` the TCP backed off al
 approach axis; ``position`` (metres) and ``quaternion_xyzw`` (unit, w >= 0) are the TCP's;
 ``joints`` the actuated joints, ``joint_state`` every joint of the URDF (radians or metres);
 ``mean_distance``, ``normal_misalignment`` (radians) and ``fit_error`` are ISF's errors;
+the grasp quality of a valid grasp of a plan ranked by quality (the plan file's ``quality``
+record and ``closing_obstructed_by``, docs/quality.md): ``epsilon`` (Ferrari-Canny),
+``force_closure``, ``gravity_margin`` (per gravity direction ``+x`` ... ``-z``, object frame:
+the largest load resisted over the object's weight), ``min_margin``, ``com_offset`` (metres,
+contacts' centroid to the centre of mass), ``squeeze_imbalance`` and
+``closing_obstructed_by`` (null for other grasps, with ``rank: fit``, and in files written
+before these columns existed);
 ``duplicate_of`` the rank of the better grasp this one repeats; ``plan_time``, ``fit_time``
 and ``collision_time`` the seconds of the whole plan (every row of a task repeats them).
 Null where the plan file lacks the field."""
@@ -122,6 +136,8 @@ def grasp_table(key: str, plan: dict[str, Any]) -> pa.Table:
     for g in plan["grasps"]:
         error = g.get("error") or {}
         tcp = g.get("tcp") or {}  # absent from plan files of schema version 1
+        quality = g.get("quality") or {}
+        obstructed = g.get("closing_obstructed_by")
         pregrasp = (g.get("pregrasp") or {}).get("tcp") or {}
         rows.append({
             "task_key": key, "object": plan["object"], "gripper": plan["gripper"],
@@ -141,6 +157,11 @@ def grasp_table(key: str, plan: dict[str, Any]) -> pa.Table:
             "collision_free": g["collision_free"], "clearance": g.get("clearance"),
             "penetration": g.get("penetration"), "valid": g["valid"], "repaired": g.get("repaired"),
             "centred": g.get("centred"),
+            "epsilon": quality.get("epsilon"), "force_closure": quality.get("force_closure"),
+            "gravity_margin": _mapping(quality.get("gravity_margin")),
+            "min_margin": quality.get("min_margin"), "com_offset": quality.get("com_offset"),
+            "squeeze_imbalance": quality.get("squeeze_imbalance"),
+            "closing_obstructed_by": None if obstructed is None else [str(n) for n in obstructed],
             "duplicate_of": g.get("duplicate_of"), "sample_index": g.get("sample_index"),
             "plan_time": stats.get("total_time"), "fit_time": stats.get("fit_time"),
             "collision_time": stats.get("collision_time"),

@@ -24,7 +24,13 @@ __all__ = ["BatchTask", "read_manifest", "tasks_from_mapping"]
 UNITS = ("m", "cm", "mm")
 """Units an object file's coordinates may be in."""
 
-_PARAMETER_MAPS = ("sampler_params", "fit", "repair")
+RANKINGS = ("quality", "fit")
+"""The rankings of a task (:func:`isf.plan`'s ``rank``)."""
+
+QUALITY_FIELDS = ("friction", "mass", "grip_force", "cone_edges")
+"""The :class:`isf.QualityConfig` fields a task's ``quality`` may set."""
+
+_PARAMETER_MAPS = ("sampler_params", "fit", "repair", "quality")
 """Fields that hold ``{name: value}`` parameters (in CSV: ``KEY=VALUE`` words separated by
 spaces)."""
 
@@ -45,6 +51,9 @@ class BatchTask:
     - ``fit``: ISF parameters (:class:`isf.FitConfig` fields, as text or values); ``repair``:
       collision-repair parameters (:class:`isf.RepairConfig` fields), None for no repair (the
       paper's Algorithm 3);
+    - ``rank``: ``quality`` (the stability-aware ranking) or ``fit`` (the paper's);
+      ``quality``: its parameters (``QUALITY_FIELDS`` of :class:`isf.QualityConfig`:
+      friction, the object's mass in kg, the grip force in N, the cones' edges);
     - ``table``: a table plane ``z = table`` (metres, object or scene frame), ``"auto"``
       (scenes: found by RANSAC) or None;
     - ``intrinsics`` (``"fx,fy,cx,cy"``, pixels), ``camera_pose`` (``T_scene_camera``: a
@@ -63,6 +72,8 @@ class BatchTask:
     seed: int = 0
     fit: Mapping[str, Any] = field(default_factory=dict)
     repair: Mapping[str, Any] | None = field(default_factory=dict)
+    rank: str = "quality"
+    quality: Mapping[str, Any] = field(default_factory=dict)
     table: float | str | None = None
     intrinsics: str | None = None
     camera_pose: str | None = None
@@ -170,12 +181,34 @@ def _task(row: Mapping[str, Any], where: str, folder: Path) -> BatchTask:
         raise InvalidInputError(f"{where}: give one of object and scene")
     if task.units not in UNITS:
         raise InvalidInputError(f"{where}: units {task.units!r} must be one of {', '.join(UNITS)}")
+    if task.rank not in RANKINGS:
+        raise InvalidInputError(f"{where}: rank {task.rank!r} must be one of {', '.join(RANKINGS)}")
+    unknown = set(task.quality) - set(QUALITY_FIELDS)
+    if unknown:
+        raise InvalidInputError(f"{where}: quality takes {', '.join(QUALITY_FIELDS)}, not "
+                                f"{', '.join(sorted(unknown))}")
+    if task.quality and task.rank == "fit":
+        raise InvalidInputError(f"{where}: quality parameters rank grasps by quality: drop them "
+                                "or set rank: quality")
+    _check_quality(task.quality, where)
     for name, low in (("samples", 1), ("seed", 0), ("top", 1)):
         if getattr(task, name) is not None and getattr(task, name) < low:
             raise InvalidInputError(f"{where}: {name} must be >= {low}, got {getattr(task, name)}")
     if not task.scale > 0:
         raise InvalidInputError(f"{where}: scale must be > 0, got {task.scale}")
     return _resolve_paths(task, folder)
+
+
+def _check_quality(quality: Mapping[str, Any], where: str) -> None:
+    """Raise the one-line error :class:`isf.QualityConfig` gives for ``quality``'s values."""
+    from ..config import config_from_text
+    from ..exceptions import ConfigError
+    from ..quality import QualityConfig
+
+    try:
+        config_from_text(QualityConfig, {k: str(v) for k, v in quality.items()})
+    except (ConfigError, InvalidInputError) as err:
+        raise InvalidInputError(f"{where}: quality: {err}") from None
 
 
 def _value(name: str, value: Any, where: str) -> Any:
