@@ -7,9 +7,9 @@ gripper's own frame and scale, never in absolute coordinates:
 ======================  ==============================================================
 ``approach_cos``        cosine between the approach axis and the inward surface normal
 ``closing_normal``      ``|closing axis . normal|`` (1: the jaws close along the normal)
-``closing_extent``      object extent along the closing axis through ``c``, in openings
+``closing_extent``      extent of the piece along the closing axis through ``c``, in openings
 ``closing_offset``      distance from ``c`` to the middle of that extent, in openings
-``approach_depth``      object depth ahead of ``c`` along the approach axis, in openings
+``approach_depth``      depth of the piece ahead of ``c`` along the approach axis, in openings
 ``surface_variation``   curvature at the opening's scale: ``l0 / (l0 + l1 + l2)`` of the
                         neighbours' covariance (0 flat, 1/3 isotropic)
 ``normal_spread``       ``1 - |mean normal|`` of the neighbours (0 flat, 1 folded)
@@ -19,10 +19,11 @@ gripper's own frame and scale, never in absolute coordinates:
 ``object_minor``        its smallest principal extent, in openings
 ======================  ==============================================================
 
-A *piece* is a connected part of the surface: points closer than ``PIECE_GAP`` point spacings
-are joined. A mesh or a whole scan is one piece, so the piece's extents are the object's; on a
-scene of several objects the pieces are the objects apart from one another (touching objects
-join), so the extents describe the object under ``c``, not the whole table.
+The *piece* of ``c`` is the connected part of the surface its nearest point lies on: points
+closer than ``PIECE_GAP`` point spacings are joined. A mesh or a whole scan is one piece, so
+these are the object's extents; on a scene of several objects the pieces are the objects apart
+from one another (touching objects join), so they describe the object under ``c``, not the
+whole table or another object further along the same line.
 
 The gripper's *opening* ``w`` is the spread of its contact points along its closing axis at
 ``q_initial`` (metres); the *closing axis* is their first principal axis (gripper frame);
@@ -150,6 +151,7 @@ class ObjectDescriptors:
         tree: k-d tree of ``points``.
         piece: the piece each point lies on, shape (N,), indices into ``extents``.
         extents: each piece's principal extents, largest first, in openings, shape (P, 3).
+        piece_points: each piece's points, P arrays of shape (N_k, 3), metres.
     """
 
     points: np.ndarray
@@ -158,6 +160,7 @@ class ObjectDescriptors:
     tree: cKDTree
     piece: np.ndarray
     extents: np.ndarray
+    piece_points: list[np.ndarray]
     _local: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -179,7 +182,8 @@ class ObjectDescriptors:
         parts = np.split(points[np.argsort(piece, kind="stable")], np.cumsum(np.bincount(piece))[:-1])
         extents = np.array([_principal_extents(part) for part in parts]) / axes.opening
         return cls(points=points, normals=np.asarray(obj.normals, dtype=float),
-                   opening=axes.opening, tree=tree, piece=piece, extents=extents)
+                   opening=axes.opening, tree=tree, piece=piece, extents=extents,
+                   piece_points=parts)
 
     def local(self, index: np.ndarray) -> np.ndarray:
         """``surface_variation`` and ``normal_spread`` at object points ``index``, shape (M, 2).
@@ -287,8 +291,13 @@ def candidate_features(descriptors: ObjectDescriptors, axes: GripperAxes,
     normal = descriptors.normals[nearest]
     approach = R @ axes.approach
     closing = R @ axes.closing
-    low, high = _tube_range(descriptors.points, centres, closing, _TUBE * w)
-    _, depth = _tube_range(descriptors.points, centres, approach, _TUBE * w)
+    piece = descriptors.piece[nearest]
+    low, high, depth = np.zeros(len(centres)), np.zeros(len(centres)), np.zeros(len(centres))
+    for k in np.unique(piece):
+        on = piece == k
+        points = descriptors.piece_points[k]
+        low[on], high[on] = _tube_range(points, centres[on], closing[on], _TUBE * w)
+        depth[on] = _tube_range(points, centres[on], approach[on], _TUBE * w)[1]
     columns = [
         -np.einsum("mk,mk->m", approach, normal),
         np.abs(np.einsum("mk,mk->m", closing, normal)),
@@ -297,6 +306,6 @@ def candidate_features(descriptors: ObjectDescriptors, axes: GripperAxes,
         np.maximum(depth, 0.0) / w,
         *descriptors.local(nearest).T,
         distance / w,
-        *descriptors.extents[descriptors.piece[nearest]].T,
+        *descriptors.extents[piece].T,
     ]
     return np.column_stack(columns)
