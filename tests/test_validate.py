@@ -171,6 +171,19 @@ def test_cli_validate_writes_validation_into_the_plan(tmp_path, capsys):
     assert code == (0 if any(g["validation"]["outcome"] == "held" for g in data["grasps"][:2]) else 1)
 
 
+def test_cli_validate_judges_with_the_friction_and_mass_the_plan_was_ranked_with(tmp_path):
+    plan = tmp_path / "plan.json"
+    assert main(["plan", "-g", "flat-parallel", "-o", "shape:box", "-n", "4", "--top", "1",
+                 "--friction", "0.8", "--mass", "0.1", "--out", str(plan), "-q"]) == 0
+    assert main(["validate", str(plan), "--top", "1", "--out", str(tmp_path / "a.json")]) in (0, 1)
+    settings = json.loads((tmp_path / "a.json").read_text())["validation_settings"]
+    assert (settings["friction"], settings["mass"]) == (0.8, 0.1)
+    assert main(["validate", str(plan), "--top", "1", "--mass", "0.2",
+                 "--out", str(tmp_path / "b.json")]) in (0, 1)
+    settings = json.loads((tmp_path / "b.json").read_text())["validation_settings"]
+    assert (settings["friction"], settings["mass"]) == (0.8, 0.2)  # what the command names wins
+
+
 def test_cli_validate_names_the_extra_when_mujoco_is_missing(tmp_path, monkeypatch, capsys):
     import builtins
 

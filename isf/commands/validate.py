@@ -20,10 +20,12 @@ def add_parser(subparsers) -> None:
             "file (docs/validate.md)."))
     p.add_argument("plan", metavar="PLAN.json", help="a plan file written by 'isf plan'")
     p.add_argument("--top", type=int, default=5, metavar="K", help="grasps to test (default 5)")
-    p.add_argument("--friction", type=float, default=0.5,
-                   help="Coulomb friction coefficient of the contacts (default 0.5)")
-    p.add_argument("--mass", type=float, default=0.3, metavar="KG",
-                   help="object mass, kg, uniform density (default 0.3)")
+    p.add_argument("--friction", type=float, default=None,
+                   help="Coulomb friction coefficient of the contacts (default: the one the plan "
+                        "was ranked with, else 0.5)")
+    p.add_argument("--mass", type=float, default=None, metavar="KG",
+                   help="object mass, kg, uniform density (default: the one the plan was ranked "
+                        "with, else 0.3)")
     p.add_argument("--finger-force", type=float, default=20.0, metavar="N",
                    help="normal force each contact surface can press with, N: a parallel "
                         "gripper squeezes with it from each jaw (default 20)")
@@ -52,9 +54,12 @@ def run(args) -> int:
         raise InvalidInputError(f"cannot read plan file {str(path)!r}: {error}") from None
     if not isinstance(plan, dict) or "grasps" not in plan:
         raise InvalidInputError(f"{str(path)!r} is not a plan file written by 'isf plan'")
-    settings = SimulationSettings(friction=args.friction, mass=args.mass,
-                                  finger_force=args.finger_force,
-                                  part_tolerance=args.part_tolerance)
+    ranked = (plan.get("ranking") or {}).get("quality") or {}  # null for a plan ranked by fit
+    default = SimulationSettings()
+    settings = SimulationSettings(
+        friction=ranked.get("friction", default.friction) if args.friction is None else args.friction,
+        mass=ranked.get("mass", default.mass) if args.mass is None else args.mass,
+        finger_force=args.finger_force, part_tolerance=args.part_tolerance)
     result = validate_plan(plan, top=args.top, settings=settings, gripper=args.gripper,
                            object_spec=args.object)
     out = Path(args.out) if args.out else path
