@@ -171,6 +171,18 @@ def test_cli_validate_writes_validation_into_the_plan(tmp_path, capsys):
     assert code == (0 if any(g["validation"]["outcome"] == "held" for g in data["grasps"][:2]) else 1)
 
 
+def test_settings_for_a_plan_take_its_ranking_friction_and_mass():
+    ranked = {"ranking": {"rank": "quality", "quality": {"friction": 0.8, "mass": 0.1,
+                                                          "grip_force": 20.0}}}
+    settings = SimulationSettings.for_plan(ranked)
+    assert (settings.friction, settings.mass) == (0.8, 0.1)
+    assert settings.finger_force == SimulationSettings().finger_force  # not the grip budget
+    given = SimulationSettings.for_plan(ranked, mass=0.2, friction=None, finger_force=30.0)
+    assert (given.friction, given.mass, given.finger_force) == (0.8, 0.2, 30.0)
+    for plan in ({"ranking": {"rank": "fit", "quality": None}}, {}):  # ranked by fit; older file
+        assert SimulationSettings.for_plan(plan) == SimulationSettings()
+
+
 def test_cli_validate_judges_with_the_friction_and_mass_the_plan_was_ranked_with(tmp_path):
     plan = tmp_path / "plan.json"
     assert main(["plan", "-g", "flat-parallel", "-o", "shape:box", "-n", "4", "--top", "1",

@@ -54,12 +54,9 @@ def run(args) -> int:
         raise InvalidInputError(f"cannot read plan file {str(path)!r}: {error}") from None
     if not isinstance(plan, dict) or "grasps" not in plan:
         raise InvalidInputError(f"{str(path)!r} is not a plan file written by 'isf plan'")
-    ranked = (plan.get("ranking") or {}).get("quality") or {}  # null for a plan ranked by fit
-    default = SimulationSettings()
-    settings = SimulationSettings(
-        friction=ranked.get("friction", default.friction) if args.friction is None else args.friction,
-        mass=ranked.get("mass", default.mass) if args.mass is None else args.mass,
-        finger_force=args.finger_force, part_tolerance=args.part_tolerance)
+    settings = SimulationSettings.for_plan(plan, friction=args.friction, mass=args.mass,
+                                           finger_force=args.finger_force,
+                                           part_tolerance=args.part_tolerance)
     result = validate_plan(plan, top=args.top, settings=settings, gripper=args.gripper,
                            object_spec=args.object)
     out = Path(args.out) if args.out else path

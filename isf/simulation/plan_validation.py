@@ -61,7 +61,9 @@ def validate_plan(plan: dict, *, top: int = 5, settings: SimulationSettings | No
     Args:
         plan: the plan as read from its JSON file (not modified).
         top: how many grasps to test, in the file's order (best first).
-        settings: the physics test's parameters.
+        settings: the physics test's parameters; default
+            :meth:`isf.simulation.SimulationSettings.for_plan`, the friction and mass the plan
+            was ranked with.
         gripper: the gripper, or its name or URDF path; default the plan's ``gripper``.
         object_spec: the object's path or spec; default the plan's ``object``.
 
@@ -73,7 +75,7 @@ def validate_plan(plan: dict, *, top: int = 5, settings: SimulationSettings | No
     if top < 1:
         raise InvalidInputError(f"--top {top}: test at least one grasp")
     require_simulator()
-    settings = settings or SimulationSettings()
+    settings = settings or SimulationSettings.for_plan(plan)
     if not isinstance(gripper, Gripper):
         gripper = load_gripper(gripper or plan["gripper"])
     body = _object(plan, object_spec, settings)

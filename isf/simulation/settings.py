@@ -66,3 +66,13 @@ class SimulationSettings:
     def to_dict(self) -> dict:
         """The settings as a JSON-ready dict."""
         return asdict(self)
+
+    @classmethod
+    def for_plan(cls, plan: dict, **given) -> SimulationSettings:
+        """The settings to test the grasps of ``plan`` (a plan file's dict) with: the friction
+        and mass the plan was ranked with (its ``ranking.quality``; the defaults for a plan
+        ranked by fit), and any setting in ``given`` that is not None."""
+        ranked = (plan.get("ranking") or {}).get("quality") or {}
+        fields = {name: ranked[name] for name in ("friction", "mass") if name in ranked}
+        fields.update({name: value for name, value in given.items() if value is not None})
+        return cls(**fields)
