@@ -71,11 +71,11 @@ from isf.samplers.regret import RegretSampler
 from isf.simulation import SimulationSettings, object_body, validate_grasp
 
 SAMPLES, SEED, TOP = 60, 0, 5
-#: what every isf.plan of this script is given besides the gripper and object (set by main)
-PLAN_OPTIONS: dict = {"samples": SAMPLES, "seed": SEED}
-#: the judge's friction coefficient (set by main; isf validate's default): the plans' quality
-#: ranking and the antipodal baseline are given the same
-JUDGE = {"friction": SimulationSettings().friction}
+#: what every isf.plan of this script is given besides the gripper and object (set by main):
+#: the quality ranking's friction and mass are the judge's (isf validate's defaults unless
+#: --friction and --mass say otherwise), and the antipodal baseline gets the same friction
+PLAN_OPTIONS: dict = {"samples": SAMPLES, "seed": SEED, "quality": isf.QualityConfig(
+    friction=SimulationSettings().friction, mass=SimulationSettings().mass)}
 
 
 def plan(gripper, obj, **options):
@@ -191,7 +191,7 @@ def candidates(method: str, gripper, obj, plan_antipodal) -> list[tuple[np.ndarr
     """The top grasps of one method as (T_object_gripper (4, 4), q (n_joints,)) pairs."""
     if method == "antipodal":
         grasps = plan_antipodal(gripper, obj, n_grasps=20, seed=PLAN_OPTIONS["seed"],
-                                friction=JUDGE["friction"])
+                                friction=PLAN_OPTIONS["quality"].friction)
     elif method == "fit" and len(rankings()) == 1:
         grasps = plan(gripper, obj).grasps
     else:
@@ -328,7 +328,6 @@ def main() -> None:
     args = parser.parse_args()
     PLAN_OPTIONS["seed"] = args.seed
     PLAN_OPTIONS["quality"] = isf.QualityConfig(friction=args.friction, mass=args.mass)
-    JUDGE["friction"] = args.friction
     if args.no_centring:
         PLAN_OPTIONS["centring"] = False
     if args.com_share is not None or args.hear_quality:

@@ -33,6 +33,7 @@ from isf.samplers import Outcome, Proposal, Sampler, get_sampler
 from .features import (
     FEATURE_NAMES,
     FEATURE_VERSION,
+    GripperAxes,
     ObjectDescriptors,
     candidate_features,
     gripper_axes,
@@ -146,6 +147,14 @@ class PlannedStarts(NamedTuple):
     valid: np.ndarray
     error: np.ndarray
 
+    def features(self, axes: GripperAxes) -> np.ndarray:
+        """The features of each start (:func:`~isf_sampler_learned.features.candidate_features`
+        on :attr:`surface` for a gripper with ``axes``), shape (M, F)."""
+        T = self.T_object_gripper
+        centres = T[:, :3, :3] @ axes.centre + T[:, :3, 3]
+        return candidate_features(ObjectDescriptors.build(self.surface, axes), axes, centres,
+                                  T[:, :3, :3])
+
 
 def plan_starts(gripper, obj, sampler: str, *, samples: int = 60, seed: int = 0) -> PlannedStarts:
     """Plan ``obj`` (an :class:`isf.ObjectSurface`) with the sampler named ``sampler`` and keep
@@ -185,13 +194,10 @@ def collect_examples(gripper, objects: Sequence, *, samplers: Sequence[str] = ("
         for name in samplers:
             planned = plan_starts(gripper, obj, name, samples=samples, seed=seed + k)
             k += 1
-            descriptors = ObjectDescriptors.build(planned.surface, axes)
-            T = planned.T_object_gripper
-            centres = T[:, :3, :3] @ axes.centre + T[:, :3, 3]
-            rows.append(candidate_features(descriptors, axes, centres, T[:, :3, :3]))
+            rows.append(planned.features(axes))
             valid.extend(planned.valid)
             error.extend(planned.error)
-            group.extend([g] * len(T))
+            group.extend([g] * len(planned.valid))
             if progress is not None:
                 progress(f"{obj.name} {name}: {int(planned.valid.sum())}/{samples} valid")
     return Examples(np.concatenate(rows), np.array(valid, dtype=bool), np.array(error, dtype=float),

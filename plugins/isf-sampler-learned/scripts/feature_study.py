@@ -34,12 +34,7 @@ import numpy as np
 import isf
 from isf.collision import CollisionChecker
 from isf_sampler_learned.bundled import tagged_franka_hand
-from isf_sampler_learned.features import (
-    FEATURE_NAMES,
-    ObjectDescriptors,
-    candidate_features,
-    gripper_axes,
-)
+from isf_sampler_learned.features import FEATURE_NAMES, gripper_axes
 from isf_sampler_learned.training import object_ranking, plan_starts
 
 OBJECTS = ("asset:duck", "asset:mug", "asset:bunny", "asset:bread", "asset:random-003",
@@ -86,9 +81,7 @@ def main() -> None:
                 planned = plan_starts(gripper, obj, sampler, samples=args.samples, seed=k)
                 k += 1
                 T = planned.T_object_gripper
-                centres = T[:, :3, :3] @ axes.centre + T[:, :3, 3]
-                features = candidate_features(ObjectDescriptors.build(planned.surface, axes), axes,
-                                              centres, T[:, :3, :3])
+                features = planned.features(axes)
                 checker = CollisionChecker(gripper, planned.surface)
                 scores.append(np.hstack([features, collision_features(checker, gripper, axes, T)]))
                 valid.append(planned.valid)
