@@ -31,7 +31,8 @@ the ground-truth judge of ``bench/scene_judge.py`` (no penetration beyond 2 mm, 
 contact surface touching one and the same object).
 
 ``--tuning`` plans the objects the sampler's parameters were chosen on instead
-(:data:`TUNING_OBJECTS`, neither training nor test objects), and ``--param KEY=VALUE`` gives
+(:data:`TUNING_OBJECTS`, neither training nor test objects; with ``--scenes``, scenes built of
+them with seeds from :data:`TUNING_SCENE_SEED` on), and ``--param KEY=VALUE`` gives
 the learned sampler a parameter (a JSON value), so that a choice of parameters can be
 compared there without touching the test objects.
 
@@ -70,6 +71,10 @@ TUNING_OBJECTS = tuple(f"asset:random-{k}" for k in range(410, 416))
 #: the objects of ``--scenes`` (bench/scene_sim.py names): the test objects of the YCB set
 SCENE_OBJECTS = tuple(spec.removeprefix("asset:") for spec in TEST_OBJECTS
                       if spec.startswith("asset:ycb:"))
+#: the objects of ``--tuning --scenes``
+TUNING_SCENE_OBJECTS = tuple(spec.removeprefix("asset:") for spec in TUNING_OBJECTS)
+#: the first scene seed of ``--tuning --scenes`` (the test scenes use seeds 0 .. N-1)
+TUNING_SCENE_SEED = 1000
 SCENE_GRIPPERS = ("flat-parallel", "franka-hand")
 SCENE_TOP = 5
 QUICK_OBJECTS = 3
@@ -211,20 +216,23 @@ class Case(NamedTuple):
         return scene_judge.Judge(gripper, self.truth)
 
 
-def scene_cases(count: int) -> list[Case]:
-    """Scenes 0 .. count-1 of :data:`SCENE_OBJECTS`, rendered and read by ``isf.load_scene``."""
+def scene_cases(count: int, objects: tuple[str, ...], first_seed: int = 0) -> list[Case]:
+    """``count`` scenes of ``objects`` (bench/scene_sim.py names), seeds ``first_seed`` on,
+    rendered and read by ``isf.load_scene``; scene k has 3 + (k mod 3) objects and 1 + (k mod 2)
+    cameras."""
     import bench_scenes
     import scene_sim
 
-    catalogue = scene_sim.catalogue(list(SCENE_OBJECTS))
+    catalogue = scene_sim.catalogue(list(objects))
     cases = []
     for k in range(count):
-        truth = scene_sim.random_scene(catalogue, 3 + k % 3, k)
-        cameras = scene_sim.random_cameras(np.random.default_rng(k), 1 + k % 2)
-        rendered = bench_scenes.render(truth, cameras, k, "auto")
+        seed = first_seed + k
+        truth = scene_sim.random_scene(catalogue, 3 + k % 3, seed)
+        cameras = scene_sim.random_cameras(np.random.default_rng(seed), 1 + k % 2)
+        rendered = bench_scenes.render(truth, cameras, seed, "auto")
         if rendered.scene is None:
-            raise SystemExit(f"isf.load_scene refused scene {k}: {rendered.error}")
-        cases.append(Case(f"scene {k} ({len(truth.objects)} objects, {len(cameras)} "
+            raise SystemExit(f"isf.load_scene refused scene {seed}: {rendered.error}")
+        cases.append(Case(f"scene {seed} ({len(truth.objects)} objects, {len(cameras)} "
                           f"camera{'s' if len(cameras) > 1 else ''})", rendered.scene, truth))
     return cases
 
@@ -266,8 +274,11 @@ def main() -> None:
     header = ["gripper", "object", "sampler", "valid@10", "first valid", "valid@60",
               "error (mm)", "sampler time"]
     header += [f"top {SCENE_TOP} passing the judge"] if args.scenes else []
-    cases = scene_cases(args.scenes) if args.scenes else [
-        Case(spec.removeprefix("asset:"), isf.open_object(spec)) for spec in objects]
+    if args.scenes:
+        cases = scene_cases(args.scenes, TUNING_SCENE_OBJECTS, TUNING_SCENE_SEED) \
+            if args.tuning else scene_cases(args.scenes, SCENE_OBJECTS)
+    else:
+        cases = [Case(spec.removeprefix("asset:"), isf.open_object(spec)) for spec in objects]
     rows, summary, hard_summary = [], [], []
     with tempfile.TemporaryDirectory() as folder:
         for name in grippers:

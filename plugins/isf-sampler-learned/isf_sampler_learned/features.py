@@ -81,6 +81,11 @@ _BALL = 0.5  # neighbourhood radius, in openings
 PIECE_GAP = 3.0
 """Points closer than this many point spacings (``ObjectSurface.spacing``) share a piece."""
 
+MAJOR_PIECE_SHARE = 0.05
+"""A piece holding at least this share of the surface's points is a major piece
+(:attr:`ObjectDescriptors.major_pieces`); the smaller ones of a scene are stray points of the
+sensor."""
+
 
 def gripper_sha256(gripper: Gripper) -> str:
     """sha256 of the gripper as isf models it: joint limits, ``q_initial``, approach, and each
@@ -184,6 +189,14 @@ class ObjectDescriptors:
         return cls(points=points, normals=np.asarray(obj.normals, dtype=float),
                    opening=axes.opening, tree=tree, piece=piece, extents=extents,
                    piece_points=parts)
+
+    @property
+    def major_pieces(self) -> int:
+        """How many pieces hold at least :data:`MAJOR_PIECE_SHARE` of the points: 1 for a mesh
+        or a scan of one object, the separate objects (or groups of touching ones) of a
+        scene."""
+        sizes = np.array([len(part) for part in self.piece_points])
+        return int(np.count_nonzero(sizes >= MAJOR_PIECE_SHARE * len(self.points)))
 
     def local(self, index: np.ndarray) -> np.ndarray:
         """``surface_variation`` and ``normal_spread`` at object points ``index``, shape (M, 2).

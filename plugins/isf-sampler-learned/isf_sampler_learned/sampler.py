@@ -4,9 +4,15 @@ is a model trained on earlier ISF outcomes.
 The arms are the regret sampler's (:class:`isf.samplers.regret.RegretSampler`): k-means
 cluster centres of the object's points, each approached against its cluster's mean inward
 normal, plus ``model_arms`` surface points that the model ranks best among ``pool`` random
-ones (at least one opening apart). At :meth:`LearnedSampler.reset` the model scores
-``spins`` orientations per arm (evenly spaced about the arm's inward direction, the gripper's
-approach axis facing the surface; uniformly random ones for a gripper without an approach):
+ones (at least one opening apart) on a surface of one major piece (an object,
+:attr:`~isf_sampler_learned.features.ObjectDescriptors.major_pieces`). On a surface of several
+(a scene of separate objects) the model's arms are left out unless ``clutter_model_arms``: the
+model judges a start by the piece under it alone, blind to the neighbours around it, so its
+best-ranked points there are no better bets than the cluster centres (measured in
+docs/sampler-learned.md); the model still scores every cluster arm's spins. At
+:meth:`LearnedSampler.reset` the model scores ``spins`` orientations per arm (evenly spaced
+about the arm's inward direction, the gripper's approach axis facing the surface; uniformly
+random ones for a gripper without an approach):
 
     score = logit P(valid) - error_weight * (predicted log10 error - median) / spread
 
@@ -91,6 +97,7 @@ class LearnedSampler(Sampler):
             best-scored spin).
         error_weight: weight of the predicted fitting error in the score, >= 0.
         model_arms: arms added at the model's best surface points, >= 0.
+        clutter_model_arms: add them also on a surface of several major pieces (a scene).
         pool: random surface points scored to place those arms, >= 1.
         top: best spins averaged into an arm's prior, >= 1.
         prior_strength: how many outcomes the model's prior of an arm is worth, >= 0.
@@ -123,6 +130,7 @@ class LearnedSampler(Sampler):
     exploration: float = 0.5
     error_weight: float = 0.5
     model_arms: int = 4
+    clutter_model_arms: bool = False
     pool: int = 48
     top: int = 3
     prior_strength: float = 2.0
@@ -155,6 +163,9 @@ class LearnedSampler(Sampler):
             number = isinstance(value, (int, float, np.number)) and not isinstance(value, bool)
             if not number or not np.isfinite(value) or value < 0:
                 raise ConfigError(f"learned: {key} must be a number >= 0.0, got {value!r}")
+        if not isinstance(self.clutter_model_arms, (bool, np.bool_)):
+            raise ConfigError(f"learned: clutter_model_arms must be true or false, "
+                              f"got {self.clutter_model_arms!r}")
         if not isinstance(self.model, (str, os.PathLike)):
             raise ConfigError(f"learned: model must be 'auto', 'none' or a file path, "
                               f"got {self.model!r}")
@@ -176,7 +187,8 @@ class LearnedSampler(Sampler):
         self.bandit.reset(obj, gripper, rng)
         self.k_clusters = self.bandit.k
         descriptors = None if self.loaded is None else ObjectDescriptors.build(obj, self._axes)
-        if descriptors is not None and self.model_arms:
+        if descriptors is not None and self.model_arms and (
+                self.clutter_model_arms or descriptors.major_pieces == 1):
             self._add_model_arms(obj, descriptors, rng)
         bandit = self.bandit
         R = self._spin_rotations(bandit.inward, self.spins, rng)

@@ -75,6 +75,7 @@ def test_conformance(tmp_path):
     ("gamma=-1", "gamma must be a finite number >= 0"),
     ("exploration=-1", "exploration must be a number >= 0.0"),
     ("model=3", "model must be"),
+    ("clutter_model_arms=1", "clutter_model_arms must be true or false"),
 ])
 def test_bad_parameters_are_one_line_config_errors(param, message):
     key, value = param.split("=")
@@ -136,6 +137,43 @@ def test_a_second_object_apart_leaves_the_features_of_a_start_unchanged():
     assert len(extents) == 2  # one piece per object
     # each piece spans at most its 6 cm; the pair together spans about 21 cm
     assert extents[:, 0].max() * axes.opening < 0.065 < 0.2 < np.ptp(pair.points[:, 0])
+
+
+def two_boxes(gap: float, stray: int = 0) -> isf.ObjectSurface:
+    """The canonical box and a copy moved ``gap`` metres along x beyond it, plus ``stray``
+    isolated points (a sensor's stray returns) scattered far from both."""
+    box = canonical_object("box")
+    width = np.ptp(box.points[:, 0])
+    rng = np.random.default_rng(5)
+    lonely = rng.uniform(-1.0, 1.0, size=(stray, 3)) * 0.05 + [0.0, 0.0, 0.3]
+    lonely[:, 0] += np.arange(stray) * 10 * box.spacing  # no two within a piece's gap
+    up = np.tile([0.0, 0.0, 1.0], (stray, 1))
+    return isf.ObjectSurface(points=np.vstack([box.points, box.points + [width + gap, 0, 0],
+                                               lonely]),
+                             normals=np.vstack([box.normals, box.normals, up]),
+                             spacing=box.spacing)
+
+
+def test_major_pieces_count_the_objects_not_the_stray_points():
+    axes = gripper_axes(canonical_gripper())
+    box = canonical_object("box")
+    assert ObjectDescriptors.build(box, axes).major_pieces == 1
+    apart = ObjectDescriptors.build(two_boxes(gap=0.02, stray=12), axes)
+    assert len(apart.piece_points) == 2 + 12 and apart.major_pieces == 2
+    # touching boxes (a gap below PIECE_GAP spacings) are one piece, as on a scene
+    assert ObjectDescriptors.build(two_boxes(gap=box.spacing), axes).major_pieces == 1
+
+
+def test_model_arms_are_placed_on_an_object_and_left_out_on_clutter(tmp_path):
+    gripper = canonical_gripper()
+    path = synthetic_model(gripper, tmp_path / "m.npz", feature=2)
+    for surface, clutter, added in ((canonical_object("box"), False, 3),
+                                    (two_boxes(gap=0.02), False, 0),
+                                    (two_boxes(gap=0.02), True, 3)):
+        sampler = LearnedSampler(model=str(path), model_arms=3, clutter_model_arms=clutter)
+        sampler.reset(surface, gripper, np.random.default_rng(6))
+        assert sampler.bandit.k == sampler.k_clusters + added
+        assert sampler.prior_valid.shape == (sampler.bandit.k,)
 
 
 def test_features_do_not_depend_on_the_object_frame():
