@@ -17,6 +17,7 @@ _SOURCES = {  # each public name -> the module of this package that defines it (
     "SamplerInfo": "registry",
     "UniformSampler": "uniform",
     "available_samplers": "registry",
+    "flag_parameter": "base",
     "get_sampler": "registry",
     "grasp_centre": "base",
     "place_gripper": "base",

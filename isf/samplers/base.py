@@ -31,6 +31,8 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
+from ..exceptions import ConfigError
+
 if TYPE_CHECKING:
     from ..gripper.model import Gripper
     from ..object.surface import ObjectSurface
@@ -40,6 +42,7 @@ __all__ = [
     "Outcome",
     "Proposal",
     "Sampler",
+    "flag_parameter",
     "grasp_centre",
     "place_gripper",
     "random_rotation",
@@ -272,6 +275,22 @@ def grasp_centre(gripper: Gripper) -> np.ndarray:
 
 _GRASP_CENTRES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 """:func:`grasp_centre` of each gripper object alive."""
+
+
+def flag_parameter(value: Any, sampler: str, key: str) -> bool:
+    """A sampler's yes/no parameter: a bool, 0 or 1, or the text ``true``/``false`` (any case),
+    as ``isf plan --sampler-param KEY=VALUE`` passes it.
+
+    Raises:
+        ConfigError: any other value, in one line naming ``sampler`` and ``key``.
+    """
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)) and value in (0, 1):
+        return bool(value)
+    if isinstance(value, str) and value.lower() in ("true", "false"):
+        return value.lower() == "true"
+    raise ConfigError(f"{sampler}: {key} must be true or false, got {value!r}")
 
 
 def place_gripper(

@@ -38,7 +38,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..exceptions import ConfigError
-from .base import NO_CONTACT_ERROR, Outcome, Proposal, Sampler, place_gripper
+from .base import NO_CONTACT_ERROR, Outcome, Proposal, Sampler, flag_parameter, place_gripper
 from .orientation import check_orientation, initial_rotations, resolve_approach
 
 if TYPE_CHECKING:
@@ -70,18 +70,6 @@ def _default_clusters(obj: ObjectSurface, gripper: Gripper) -> int:
     opening = float(np.ptp(centroids, axis=0).max()) if len(centroids) > 1 else 0.05
     area = obj.n_points * obj.spacing**2
     return int(np.clip(round(area / (0.5 * opening) ** 2), PAPER_CLUSTERS, MAX_SCENE_CLUSTERS))
-
-
-def _flag(value, key: str) -> bool:
-    """A yes/no parameter: a bool, 0 or 1, or the text ``true``/``false`` (as ``isf plan
-    --sampler-param KEY=VALUE`` passes it)."""
-    if isinstance(value, (bool, np.bool_)):
-        return bool(value)
-    if isinstance(value, (int, np.integer)) and value in (0, 1):
-        return bool(value)
-    if isinstance(value, str) and value.lower() in ("true", "false"):
-        return value.lower() == "true"
-    raise ConfigError(f"regret: {key} must be true or false, got {value!r}")
 
 
 @dataclass(eq=False, kw_only=True)
@@ -166,7 +154,7 @@ class RegretSampler(Sampler):
         if isinstance(share, bool) or not isinstance(share, (int, float, np.number)) \
                 or not 0 <= share < 1:
             raise ConfigError(f"regret: com_share must be a number in [0, 1), got {share!r}")
-        self.hear_quality = _flag(self.hear_quality, "hear_quality")
+        self.hear_quality = flag_parameter(self.hear_quality, "regret", "hear_quality")
         check_orientation(self.orientation, self.name)
 
     def reset(self, obj: ObjectSurface, gripper: Gripper, rng: np.random.Generator) -> None:

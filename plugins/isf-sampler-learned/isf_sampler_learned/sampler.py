@@ -47,7 +47,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from isf.exceptions import ConfigError
-from isf.samplers import Outcome, Proposal, Sampler, place_gripper
+from isf.samplers import Outcome, Proposal, Sampler, flag_parameter, place_gripper
 from isf.samplers.orientation import initial_rotations
 from isf.samplers.regret import RegretSampler
 from isf.se3 import exp_so3
@@ -163,9 +163,8 @@ class LearnedSampler(Sampler):
             number = isinstance(value, (int, float, np.number)) and not isinstance(value, bool)
             if not number or not np.isfinite(value) or value < 0:
                 raise ConfigError(f"learned: {key} must be a number >= 0.0, got {value!r}")
-        if not isinstance(self.clutter_model_arms, (bool, np.bool_)):
-            raise ConfigError(f"learned: clutter_model_arms must be true or false, "
-                              f"got {self.clutter_model_arms!r}")
+        self.clutter_model_arms = flag_parameter(self.clutter_model_arms, "learned",
+                                                 "clutter_model_arms")
         if not isinstance(self.model, (str, os.PathLike)):
             raise ConfigError(f"learned: model must be 'auto', 'none' or a file path, "
                               f"got {self.model!r}")

@@ -75,7 +75,7 @@ def test_conformance(tmp_path):
     ("gamma=-1", "gamma must be a finite number >= 0"),
     ("exploration=-1", "exploration must be a number >= 0.0"),
     ("model=3", "model must be"),
-    ("clutter_model_arms=1", "clutter_model_arms must be true or false"),
+    ("clutter_model_arms=2", "clutter_model_arms must be true or false"),
 ])
 def test_bad_parameters_are_one_line_config_errors(param, message):
     key, value = param.split("=")
@@ -167,9 +167,10 @@ def test_major_pieces_count_the_objects_not_the_stray_points():
 def test_model_arms_are_placed_on_an_object_and_left_out_on_clutter(tmp_path):
     gripper = canonical_gripper()
     path = synthetic_model(gripper, tmp_path / "m.npz", feature=2)
+    # "true" as isf plan --sampler-param clutter_model_arms=true passes it
     for surface, clutter, added in ((canonical_object("box"), False, 3),
                                     (two_boxes(gap=0.02), False, 0),
-                                    (two_boxes(gap=0.02), True, 3)):
+                                    (two_boxes(gap=0.02), "true", 3)):
         sampler = LearnedSampler(model=str(path), model_arms=3, clutter_model_arms=clutter)
         sampler.reset(surface, gripper, np.random.default_rng(6))
         assert sampler.bandit.k == sampler.k_clusters + added
