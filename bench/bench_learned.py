@@ -16,7 +16,7 @@ warm-up plan per sampler and gripper (imports and kernels load once per process)
 summary per gripper gives the targets of the learned sampler: median over objects of the
 ratios learned / regret, and the worst object; a second summary covers only the objects where
 regret finds at most 6 valid grasps among its first 10, the only ones where a 1.5x ratio of
-valid@10 is possible.
+valid@10 is possible; a last table sums each sampler's medians over the objects (or scenes).
 
 Needs the YCB meshes (``../shared/data/ycb`` or ``$ISF_YCB_DIR``) and the plugin installed
 (``pip install -e plugins/isf-sampler-learned``).
@@ -279,12 +279,12 @@ def main() -> None:
             if args.tuning else scene_cases(args.scenes, SCENE_OBJECTS)
     else:
         cases = [Case(spec.removeprefix("asset:"), isf.open_object(spec)) for spec in objects]
-    rows, summary, hard_summary = [], [], []
+    rows, summary, hard_summary, totals = [], [], [], []
     with tempfile.TemporaryDirectory() as folder:
         for name in grippers:
             gripper = load(name, Path(folder))
             warm_up(gripper)
-            ratios = []
+            ratios, summed = [], {}
             for case in cases:
                 judge = None if case.truth is None else case.judge(gripper)
                 medians = {}
@@ -292,6 +292,8 @@ def main() -> None:
                                            ("learned", LearnedSampler, params)):
                     medians[label] = m = median_run([run_once(gripper, case.obj, cls, s, kwargs,
                                                               judge) for s in seeds])
+                    summed[label] = [a + b for a, b in zip(summed.get(label, [0.0] * 3),
+                                                           (m.valid_first, m.valid, m.judged))]
                     rows.append([name, case.name, label, _common.fmt(m.valid_first),
                                  _common.fmt(m.first_valid), _common.fmt(m.valid),
                                  _common.fmt(m.error_mm), f"{100 * m.sampler_share:.1f} %"])
@@ -303,6 +305,8 @@ def main() -> None:
                                          ratio(l.first_valid, r.first_valid), l.valid - r.valid,
                                          ratio(l.error_mm, r.error_mm), l.sampler_share))
             summary.append(summarise(name, "all scenes" if args.scenes else "all", ratios))
+            totals += [[name, label, *(_common.fmt(v) for v in values[:3 if args.scenes else 2])]
+                       for label, values in summed.items()]
             hard = [row for row in ratios if row.regret_first < HARD]
             if hard:
                 hard_summary.append(summarise(name, ", ".join(row.object for row in hard), hard))
@@ -318,6 +322,10 @@ def main() -> None:
         f"The same on the objects where `regret` finds fewer than {HARD} valid grasps among its "
         f"first {FIRST} samples (where a {TARGET_RATIO}x ratio can exist):",
         _common.markdown_table(SUMMARY_HEADER, hard_summary),
+        f"Summed over the {'scenes' if args.scenes else 'objects'} (medians over the seeds):",
+        _common.markdown_table(["gripper", "sampler", "valid@10", "valid@60",
+                                *([f"top {SCENE_TOP} passing the judge"] if args.scenes else [])],
+                               totals),
     ])
     print(report)
     if args.out:
