@@ -14,10 +14,13 @@ import itertools
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..config import number_or_text
-from ..exceptions import InvalidInputError
+from ..exceptions import ConfigError, InvalidInputError
+
+if TYPE_CHECKING:
+    import isf
 
 __all__ = ["BatchTask", "read_manifest", "tasks_from_mapping"]
 
@@ -92,6 +95,20 @@ class BatchTask:
     def target(self) -> str:
         """The object or scene the task plans on, as the manifest names it."""
         return self.object if self.object is not None else f"scene:{self.scene}"
+
+    def quality_config(self) -> isf.QualityConfig | None:
+        """The :class:`isf.QualityConfig` of ``quality`` (its values read as text), or None
+        for ``rank: fit``.
+
+        Raises:
+            ConfigError: a value :class:`isf.QualityConfig` does not take.
+        """
+        from ..config import config_from_text
+        from ..quality import QualityConfig
+
+        if self.rank == "fit":
+            return None
+        return config_from_text(QualityConfig, {k: str(v) for k, v in self.quality.items()})
 
 
 _FIELDS = {f.name: f for f in fields(BatchTask)}
@@ -190,25 +207,16 @@ def _task(row: Mapping[str, Any], where: str, folder: Path) -> BatchTask:
     if task.quality and task.rank == "fit":
         raise InvalidInputError(f"{where}: quality parameters rank grasps by quality: drop them "
                                 "or set rank: quality")
-    _check_quality(task.quality, where)
+    try:
+        task.quality_config()
+    except (ConfigError, InvalidInputError) as err:
+        raise InvalidInputError(f"{where}: quality: {err}") from None
     for name, low in (("samples", 1), ("seed", 0), ("top", 1)):
         if getattr(task, name) is not None and getattr(task, name) < low:
             raise InvalidInputError(f"{where}: {name} must be >= {low}, got {getattr(task, name)}")
     if not task.scale > 0:
         raise InvalidInputError(f"{where}: scale must be > 0, got {task.scale}")
     return _resolve_paths(task, folder)
-
-
-def _check_quality(quality: Mapping[str, Any], where: str) -> None:
-    """Raise the one-line error :class:`isf.QualityConfig` gives for ``quality``'s values."""
-    from ..config import config_from_text
-    from ..exceptions import ConfigError
-    from ..quality import QualityConfig
-
-    try:
-        config_from_text(QualityConfig, {k: str(v) for k, v in quality.items()})
-    except (ConfigError, InvalidInputError) as err:
-        raise InvalidInputError(f"{where}: quality: {err}") from None
 
 
 def _value(name: str, value: Any, where: str) -> Any:

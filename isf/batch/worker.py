@@ -161,7 +161,6 @@ def _plan(keyed: KeyedTask, outcome: TaskOutcome) -> None:
     from ..object.specs import open_object
     from ..planning.plan_json import Provenance, plan_json_text
     from ..planning.planner import plan
-    from ..quality import QualityConfig
     from ..repair.clearance import RepairConfig
     from ..samplers import get_sampler
 
@@ -185,12 +184,10 @@ def _plan(keyed: KeyedTask, outcome: TaskOutcome) -> None:
     repair = False if task.repair is None else (
         config_from_text(RepairConfig, {k: str(v) for k, v in task.repair.items()})
         if task.repair else True)
-    quality = None if task.rank == "fit" else config_from_text(
-        QualityConfig, {k: str(v) for k, v in task.quality.items()})
     result = plan(gripper, obj, samples=task.samples,
                   sampler=get_sampler(task.sampler, **task.sampler_params), seed=task.seed,
                   config=config, obstacles=obstacles, repair_collisions=repair, rank=task.rank,
-                  quality=quality)
+                  quality=task.quality_config())
     outcome.plan_time = result.stats.total_time
     file = task.scene if task.scene is not None else task.object
     provenance = Provenance(object_file=None if file.startswith(("shape:", "asset:")) else file,
