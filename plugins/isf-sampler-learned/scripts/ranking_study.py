@@ -46,6 +46,12 @@ def boosted_trees(train: Examples, test: Examples) -> np.ndarray:
     return booster.predict(test.features)
 
 
+def gripper_of(path: Path) -> str:
+    """The gripper of a ``train_bundled.py --cache`` file
+    (``NAME-N-objects-seedS-samplesM.npz``)."""
+    return path.name.split("-objects")[0].rsplit("-", 1)[0]
+
+
 FRACTIONS = (1 / 3, 2 / 3, 1.0)
 DRAWS = 3
 
@@ -95,8 +101,7 @@ def main() -> None:
         for path in sorted(args.cache.glob("*.npz")):
             examples = Examples.load(path)
             aucs = learning_curve(examples, args.folds, rng)
-            name = path.name.split('-objects')[0].rsplit('-', 1)[0]
-            print(f"| {name} | {len(examples.valid)} | "
+            print(f"| {gripper_of(path)} | {len(examples.valid)} | "
                   + " | ".join(f"{auc:.3f}" for auc in aucs) + " |", flush=True)
         return
     methods = {"hinge logistic, l2 1": hinge(1.0), "hinge logistic, l2 10": hinge(10.0)}
@@ -112,8 +117,7 @@ def main() -> None:
         for label, fit_predict in methods.items():
             score = cross_validated(examples, args.folds, fit_predict)
             ranking = object_ranking(score, examples.valid, examples.group)
-            name = path.name.split('-objects')[0].rsplit('-', 1)[0]
-            print(f"| {name} | {label} | "
+            print(f"| {gripper_of(path)} | {label} | "
                   f"{ranking.auc:.3f} | {ranking.top_decile_valid:.3f} | "
                   f"{ranking.valid_rate:.3f} |", flush=True)
 
