@@ -500,6 +500,36 @@ def test_regret_reads_hear_quality_as_a_flag(value, flag):
     assert RegretSampler(hear_quality=value).hear_quality is flag  # e.g. --sampler-param text
 
 
+@pytest.mark.parametrize(("value", "low", "kept"), [(3, 1, 3), (np.int64(0), 0, 0)])
+def test_integer_parameter_keeps_whole_numbers_in_range(value, low, kept):
+    result = isf.samplers.integer_parameter(value, "mine", "spins", low)
+    assert result == kept and type(result) is int
+
+
+@pytest.mark.parametrize("value", [0, 2.0, True, "3", None])
+def test_integer_parameter_refuses_in_one_line(value):
+    with pytest.raises(ConfigError) as caught:
+        isf.samplers.integer_parameter(value, "mine", "spins", 1)
+    assert str(caught.value) == f"mine: spins must be an integer >= 1, got {value!r}"
+
+
+@pytest.mark.parametrize(("value", "below"), [(0, None), (np.float32(2.5), None), (0.999, 1.0)])
+def test_number_parameter_keeps_numbers_in_range(value, below):
+    result = isf.samplers.number_parameter(value, "mine", "weight", below=below)
+    assert result == pytest.approx(float(value)) and type(result) is float
+
+
+@pytest.mark.parametrize(("value", "below", "allowed"), [
+    (-0.1, None, "a finite number >= 0"), (float("inf"), None, "a finite number >= 0"),
+    (float("nan"), None, "a finite number >= 0"), (False, None, "a finite number >= 0"),
+    ("1", None, "a finite number >= 0"), (1.0, 1.0, "a number in [0, 1)"),
+])
+def test_number_parameter_refuses_in_one_line(value, below, allowed):
+    with pytest.raises(ConfigError) as caught:
+        isf.samplers.number_parameter(value, "mine", "weight", below=below)
+    assert str(caught.value) == f"mine: weight must be {allowed}, got {value!r}"
+
+
 def test_regret_needs_enough_points(gripper):
     obj = ObjectSurface(points=np.eye(3), normals=np.eye(3), spacing=1.0)
     with pytest.raises(ConfigError, match="n_clusters=6 exceeds the object's 3 points"):

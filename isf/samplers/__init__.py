@@ -20,6 +20,8 @@ _SOURCES = {  # each public name -> the module of this package that defines it (
     "flag_parameter": "base",
     "get_sampler": "registry",
     "grasp_centre": "base",
+    "integer_parameter": "base",
+    "number_parameter": "base",
     "place_gripper": "base",
     "random_rotation": "base",
     "refresh_samplers": "registry",

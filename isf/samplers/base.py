@@ -44,6 +44,8 @@ __all__ = [
     "Sampler",
     "flag_parameter",
     "grasp_centre",
+    "integer_parameter",
+    "number_parameter",
     "place_gripper",
     "random_rotation",
 ]
@@ -291,6 +293,37 @@ def flag_parameter(value: Any, sampler: str, key: str) -> bool:
     if isinstance(value, str) and value.lower() in ("true", "false"):
         return value.lower() == "true"
     raise ConfigError(f"{sampler}: {key} must be true or false, got {value!r}")
+
+
+def integer_parameter(value: Any, sampler: str, key: str, low: int) -> int:
+    """A sampler's whole-number parameter, at least ``low``.
+
+    Raises:
+        ConfigError: a bool, a non-integer or a value below ``low``, in one line naming
+            ``sampler`` and ``key``.
+    """
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) \
+            or value < low:
+        raise ConfigError(f"{sampler}: {key} must be an integer >= {low}, got {value!r}")
+    return int(value)
+
+
+def number_parameter(value: Any, sampler: str, key: str, low: float = 0.0,
+                     below: float | None = None) -> float:
+    """A sampler's real-number parameter: finite, at least ``low`` and, when ``below`` is given,
+    less than it.
+
+    Raises:
+        ConfigError: a bool, a non-number, a NaN or infinity, or a value out of range, in one
+            line naming ``sampler``, ``key`` and the range.
+    """
+    number = isinstance(value, (int, float, np.integer, np.floating)) \
+        and not isinstance(value, (bool, np.bool_))
+    if not number or not np.isfinite(value) or value < low \
+            or (below is not None and value >= below):
+        allowed = f"a finite number >= {low:g}" if below is None else f"a number in [{low:g}, {below:g})"
+        raise ConfigError(f"{sampler}: {key} must be {allowed}, got {value!r}")
+    return float(value)
 
 
 def place_gripper(

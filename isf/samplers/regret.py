@@ -38,7 +38,16 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..exceptions import ConfigError
-from .base import NO_CONTACT_ERROR, Outcome, Proposal, Sampler, flag_parameter, place_gripper
+from .base import (
+    NO_CONTACT_ERROR,
+    Outcome,
+    Proposal,
+    Sampler,
+    flag_parameter,
+    integer_parameter,
+    number_parameter,
+    place_gripper,
+)
 from .orientation import check_orientation, initial_rotations, resolve_approach
 
 if TYPE_CHECKING:
@@ -139,21 +148,12 @@ class RegretSampler(Sampler):
     _approach: np.ndarray | None = field(init=False, repr=False, default=None)
 
     def __post_init__(self) -> None:
-        for key in ("n_clusters", "kmeans_iterations"):
-            value = getattr(self, key)
-            if key == "n_clusters" and value is None:
-                continue
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-                raise ConfigError(f"regret: {key} must be an integer >= 1, got {value!r}")
-        gamma = self.gamma
-        if isinstance(gamma, bool) or not isinstance(gamma, (int, float, np.number)):
-            raise ConfigError(f"regret: gamma must be a number >= 0, got {gamma!r}")
-        if not np.isfinite(gamma) or gamma < 0:
-            raise ConfigError(f"regret: gamma must be a finite number >= 0, got {gamma!r}")
-        share = self.com_share
-        if isinstance(share, bool) or not isinstance(share, (int, float, np.number)) \
-                or not 0 <= share < 1:
-            raise ConfigError(f"regret: com_share must be a number in [0, 1), got {share!r}")
+        if self.n_clusters is not None:
+            self.n_clusters = integer_parameter(self.n_clusters, "regret", "n_clusters", 1)
+        self.kmeans_iterations = integer_parameter(self.kmeans_iterations, "regret",
+                                                   "kmeans_iterations", 1)
+        self.gamma = number_parameter(self.gamma, "regret", "gamma")
+        self.com_share = number_parameter(self.com_share, "regret", "com_share", below=1.0)
         self.hear_quality = flag_parameter(self.hear_quality, "regret", "hear_quality")
         check_orientation(self.orientation, self.name)
 

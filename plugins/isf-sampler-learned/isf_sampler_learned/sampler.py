@@ -47,7 +47,15 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from isf.exceptions import ConfigError
-from isf.samplers import Outcome, Proposal, Sampler, flag_parameter, place_gripper
+from isf.samplers import (
+    Outcome,
+    Proposal,
+    Sampler,
+    flag_parameter,
+    integer_parameter,
+    number_parameter,
+    place_gripper,
+)
 from isf.samplers.orientation import initial_rotations
 from isf.samplers.regret import RegretSampler
 from isf.se3 import exp_so3
@@ -154,15 +162,10 @@ class LearnedSampler(Sampler):
 
     def __post_init__(self) -> None:
         for key, low in (("spins", 1), ("model_arms", 0), ("pool", 1), ("top", 1)):
-            value = getattr(self, key)
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
-                raise ConfigError(f"learned: {key} must be an integer >= {low}, got {value!r}")
+            setattr(self, key, integer_parameter(getattr(self, key), "learned", key, low))
         for key in ("exploration", "error_weight", "prior_strength", "spin_evidence",
                     "arm_error_weight"):
-            value = getattr(self, key)
-            number = isinstance(value, (int, float, np.number)) and not isinstance(value, bool)
-            if not number or not np.isfinite(value) or value < 0:
-                raise ConfigError(f"learned: {key} must be a number >= 0.0, got {value!r}")
+            setattr(self, key, number_parameter(getattr(self, key), "learned", key))
         self.clutter_model_arms = flag_parameter(self.clutter_model_arms, "learned",
                                                  "clutter_model_arms")
         if not isinstance(self.model, (str, os.PathLike)):

@@ -73,7 +73,7 @@ def test_conformance(tmp_path):
     ("spins=0", "spins must be an integer >= 1"),
     ("model_arms=-1", "model_arms must be an integer >= 0"),
     ("gamma=-1", "gamma must be a finite number >= 0"),
-    ("exploration=-1", "exploration must be a number >= 0.0"),
+    ("exploration=-1", "exploration must be a finite number >= 0"),
     ("model=3", "model must be"),
     ("clutter_model_arms=2", "clutter_model_arms must be true or false"),
 ])
