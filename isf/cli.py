@@ -283,14 +283,17 @@ class _Interrupts:
     it never lands inside a compiled kernel, a write, or an import of a library that swallows
     exceptions while it imports (trimesh does); only the kernel compilation, which can take
     minutes and writes no output file, is interrupted at once (:meth:`immediate`). Outside the
-    main thread (a test calling :func:`main`) signals cannot be handled and nothing changes."""
+    main thread (a test calling :func:`main`) signals cannot be handled, and in a process
+    started with SIGINT ignored (``isf plan ... &`` in a script: the shell ignores it for
+    background jobs) it stays ignored, as Python leaves it: nothing changes."""
 
     def __init__(self) -> None:
         self.pending = False
         self._previous = None
 
     def __enter__(self) -> _Interrupts:
-        if threading.current_thread() is threading.main_thread():
+        if threading.current_thread() is threading.main_thread() \
+                and signal.getsignal(signal.SIGINT) is not signal.SIG_IGN:
             self._previous = signal.signal(signal.SIGINT, self._record)
         return self
 

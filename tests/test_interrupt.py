@@ -33,6 +33,12 @@ def _command(out_dir):
             "--out-dir", str(out_dir), "--quiet"]
 
 
+def _foreground_sigint():
+    """In the child before it runs the command: SIGINT acts, as in a terminal's foreground job
+    (a test run started in the background has it ignored, and the child would inherit that)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 class Times(NamedTuple):
     """Seconds to start the command line (interpreter and imports) and to run it whole."""
 
@@ -65,7 +71,7 @@ def test_sigint_at_random_moments_exits_130_and_leaves_only_complete_files(tmp_p
     for k, delay in enumerate(delays):
         out = tmp_path / f"try{k}"
         proc = subprocess.Popen(_command(out), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                text=True, start_new_session=True)
+                                text=True, start_new_session=True, preexec_fn=_foreground_sigint)
         time.sleep(delay)
         os.killpg(proc.pid, signal.SIGINT)  # as a terminal does: to the command and its helpers
         stdout, stderr = proc.communicate(timeout=120)

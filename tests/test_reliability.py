@@ -14,6 +14,7 @@ import signal
 import stat
 import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
@@ -194,15 +195,48 @@ def test_an_interrupt_inside_a_compiled_kernel_exits_130(monkeypatch, capsys):
     assert capsys.readouterr().err.strip() == "isf: interrupted"
 
 
-def test_sigint_while_planning_waits_for_a_safe_point():
+@pytest.fixture
+def sigint_handler():
+    """Set SIGINT's handler for a test (``sigint_handler(handler)``); the one the test run
+    had is put back after it."""
+    before = signal.getsignal(signal.SIGINT)
+    yield lambda handler: signal.signal(signal.SIGINT, handler)
+    signal.signal(signal.SIGINT, before)
+
+
+def test_sigint_while_planning_waits_for_a_safe_point(sigint_handler):
     from isf.cli import _Interrupts
 
+    sigint_handler(signal.default_int_handler)  # Python started from an interactive shell
     with pytest.raises(KeyboardInterrupt), _Interrupts() as interrupts:
         os.kill(os.getpid(), signal.SIGINT)  # recorded, not raised inside whatever runs
         interrupts.check()
     with _Interrupts() as interrupts:
         assert not interrupts.pending  # the next run starts clean
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_a_run_started_with_sigint_ignored_keeps_ignoring_it(sigint_handler):
+    from isf.cli import _Interrupts
+
+    sigint_handler(signal.SIG_IGN)  # a background job of a script: the shell ignores it there
+    during = None
+    try:
+        with _Interrupts() as interrupts:
+            os.kill(os.getpid(), signal.SIGINT)
+            for _ in range(100):  # a handler runs when the main thread next checks: wait for it
+                if interrupts.pending:
+                    break
+                time.sleep(0.001)
+            recorded = interrupts.pending
+            if not recorded:
+                with interrupts.immediate():
+                    during = signal.getsignal(signal.SIGINT)
+    except KeyboardInterrupt:  # escaping a test, it would end pytest's whole run
+        pytest.fail("a SIGINT the process ignores was taken for Ctrl-C")
+    assert not recorded
+    assert during is signal.SIG_IGN  # not the handler that exits at once
+    assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
 
 
 # ------------------------------------------------------------ 4. a wrong gripper is refused
